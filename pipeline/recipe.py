@@ -38,6 +38,9 @@ Vec3 = tuple[float, float, float]
 PositiveVec3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
 Vec2 = tuple[float, float]
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$"
+#: Value of a region's part/style meaning "keep what the source says".
+FROM_SOURCE = "@source"
+LABEL_PATTERN = r"^(@source|[A-Za-z0-9][A-Za-z0-9_.\-]*)$"
 
 
 class _Strict(BaseModel):
@@ -324,8 +327,10 @@ class RegionRule(_Strict):
 
     parts: list[str] = Field(["*"], min_length=1)
     band: Optional[Union[Literal["top", "bottom"], Band]] = None
-    part: str = Field(pattern=NAME_PATTERN, description="Semantic part label, e.g. body, roof.")
-    style: str = Field(pattern=NAME_PATTERN, description="Style name (an exemplar of the detailizer).")
+    part: str = Field(pattern=LABEL_PATTERN, description="Semantic part label, e.g. body, roof; "
+                      "'@source' keeps the source's own part name.")
+    style: str = Field(pattern=LABEL_PATTERN, description="Style name (an exemplar of the detailizer); "
+                       "'@source' keeps the style a voxels input carries.")
 
     def band_range(self) -> Band | None:
         if isinstance(self.band, str):
@@ -384,13 +389,14 @@ class Recipe(_Strict):
     defaults: Defaults = Defaults()
     assets: list[Asset] = Field(min_length=1)
 
-    @model_validator(mode="after")
-    def _unique_names(self) -> "Recipe":
-        names = [a.name for a in self.assets]
+    @field_validator("assets")
+    @classmethod
+    def _unique_names(cls, assets: list[Asset]) -> list[Asset]:
+        names = [a.name for a in assets]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ValueError(f"asset names must be unique; repeated: {dup}")
-        return self
+        return assets
 
 
 # --------------------------------------------------------------------------- loading

@@ -1,0 +1,514 @@
+"""Every size and weight of the DECOLLAGE detailizer in one frozen, JSON-able config.
+
+``ModelConfig`` describes the generator (backbone at the coarse resolution, then
+one doubling level per entry of ``levels``), one discriminator per level, and the
+loss weights. Two named layouts exist:
+
+- ``ModelConfig.lean(P, N)``: the CPU default (about 0.6 M generator parameters;
+  no 3×3×3 convolution at the finest resolution, sub-pixel "voxel shuffle" for the
+  last level), sized from ``reference/perf-envelope.md``'s measurements;
+- ``ModelConfig.paper(P, N)``: the layout of the published code
+  (``reference/method.md`` §1.1/§1.2): 18.8 M generator parameters for P=5, N=32.
+
+``to_dict``/``from_dict`` round-trip through plain JSON types for checkpoints;
+``from_dict`` refuses unknown or missing keys and invalid values with a
+``DetailizeError`` whose ``field`` is the dotted path inside the config
+(e.g. ``config.levels[3].width``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any
+
+from pipeline.errors import DetailizeError
+
+
+class Upsampler(str, Enum):
+    """How a generator level doubles the resolution."""
+
+    #: ConvTranspose3d(kernel 4, stride 2, padding 1), as in the published code.
+    CONV_TRANSPOSE = "conv_transpose"
+    #: 3×3×3 conv at the input resolution predicting 2×2×2 sub-voxels, then a voxel shuffle.
+    VOXEL_SHUFFLE = "voxel_shuffle"
+
+
+class DownLoss(str, Enum):
+    """Form of the structure-preserving downsampling loss (paper and code differ)."""
+
+    #: ‖maxpool₂(level j+1) − level j‖², the paper's Eq. (down).
+    PAPER_MSE = "paper_mse"
+    #: The published code's hinge on avg/max-pooled cells (method.md §3).
+    CODE_HINGE = "code_hinge"
+
+
+class TargetSmoothing(str, Enum):
+    """How the per-level reconstruction / "real" targets are smoothed."""
+
+    #: One Gaussian of ``smoothing_sigma`` (the paper; DECOR-GAN, ShaDDR).
+    GAUSSIAN = "gaussian"
+    #: Gaussian, then ``smoothing_passes`` residual passes so the 0.4 iso-surface keeps thin parts (the code).
+    PROGRESSIVE = "progressive"
+
+
+@dataclass(frozen=True)
+class LevelSpec:
+    """One generator level: doubles the resolution of the features it receives.
+
+    Attributes:
+        width: feature channels produced by the level (at its output resolution).
+        upsampler: how the resolution is doubled.
+        n_convs: extra 3×3×3 convs (width→width) after the upsampling.
+        head_kernel: kernel of the 1-channel occupancy side head (odd), or 0 for
+            "no head": the upsampled single feature channel *is* the occupancy
+            pre-activation (needs ``width == 1`` and ``n_convs == 0``; only on the
+            last level). This is how the lean layout avoids any 3×3×3 conv at 256³.
+    """
+
+    width: int
+    upsampler: Upsampler = Upsampler.CONV_TRANSPOSE
+    n_convs: int = 1
+    head_kernel: int = 3
+
+
+@dataclass(frozen=True)
+class DiscLayer:
+    """One valid (unpadded) Conv3d of a discriminator, followed by LeakyReLU."""
+
+    width: int
+    kernel: int = 3
+    stride: int = 1
+
+
+@dataclass(frozen=True)
+class DiscriminatorSpec:
+    """A PatchGAN discriminator: valid convs, then a 1×1×1 conv to N+1 channels and a sigmoid.
+
+    The geometry below is analytic and is what ``model.masks`` uses to align the
+    coarse masks with the discriminator output (no hard-coded crop table).
+    """
+
+    layers: tuple[DiscLayer, ...]
+
+    def receptive_field(self) -> int:
+        """Edge of the cube of input voxels one output voxel sees."""
+        rf, jump = 1, 1
+        for layer in self.layers:
+            rf += (layer.kernel - 1) * jump
+            jump *= layer.stride
+        return rf
+
+    def stride(self) -> int:
+        """Total stride: input voxels per output voxel along one axis."""
+        return math.prod(layer.stride for layer in self.layers)
+
+    def output_size(self, n: int) -> int:
+        """Output length along one axis for an input of length ``n`` (≤ 0: input too small)."""
+        for layer in self.layers:
+            if n < layer.kernel:
+                return 0
+            n = (n - layer.kernel) // layer.stride + 1
+        return n
+
+    def mask_offset(self) -> int:
+        """Cells to skip at the start of a mask at 1/stride resolution to align it with the output.
+
+        Output voxel ``o`` sees input voxels ``[o·S, o·S + RF)``, centred at ``o·S + RF/2``;
+        mask cell ``m`` at resolution 1/S is centred at ``m·S + S/2``. They coincide when
+        ``m = o + (RF − S) / (2S)``.
+        """
+        rf, s = self.receptive_field(), self.stride()
+        return (rf - s) // (2 * s)
+
+    def _alignment_exact(self) -> bool:
+        rf, s = self.receptive_field(), self.stride()
+        return rf >= s and (rf - s) % (2 * s) == 0
+
+
+@dataclass(frozen=True)
+class LossConfig:
+    """Loss weights and variants (method.md §3; paper Eq. 1–6).
+
+    Attributes:
+        beta_recon: weight of the per-level reconstruction MSE (the code's β=10; the paper has 1).
+        gamma_down, gamma_up: weights of the structure-preserving losses (γ1 = γ2 = 10).
+        alpha_joint, alpha_other: style-head weight in joint cells / elsewhere (α1, α2).
+        joint_radius: joints are voxels within this many *fine* voxels of two parts.
+        down_loss: paper MSE or the code's hinge (default: code, per method.md's advice).
+        stop_gradient: detach the coarser level in L_down / L_up (paper: yes; code: no).
+        down_hinge_high: the hinge's "already occupied" max-pool level (code: 0.6; the
+            other thresholds are the project's iso level 0.4).
+        target_smoothing, smoothing_sigma, smoothing_passes: how the training targets
+            are smoothed (fine voxels).
+    """
+
+    beta_recon: float = 10.0
+    gamma_down: float = 10.0
+    gamma_up: float = 10.0
+    alpha_joint: float = 0.1
+    alpha_other: float = 0.5
+    joint_radius: int = 2
+    down_loss: DownLoss = DownLoss.CODE_HINGE
+    stop_gradient: bool = True
+    down_hinge_high: float = 0.6
+    target_smoothing: TargetSmoothing = TargetSmoothing.PROGRESSIVE
+    smoothing_sigma: float = 1.0
+    smoothing_passes: int = 4
+
+
+def _rf7(w: tuple[int, int, int]) -> DiscriminatorSpec:
+    return DiscriminatorSpec(tuple(DiscLayer(c) for c in w))
+
+
+def _rf9(w: tuple[int, int, int, int]) -> DiscriminatorSpec:
+    return DiscriminatorSpec(tuple(DiscLayer(c) for c in w))
+
+
+def _rf18(w: tuple[int, int, int, int, int]) -> DiscriminatorSpec:
+    """4³ conv, 3³ stride-2 conv, three 3³ convs: RF 18, output at half resolution."""
+    return DiscriminatorSpec(
+        (DiscLayer(w[0], 4, 1), DiscLayer(w[1], 3, 2), *(DiscLayer(c, 3, 1) for c in w[2:]))
+    )
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """All sizes and weights of the generator, the discriminators and the losses.
+
+    Attributes:
+        n_parts: P, number of part classes (one-hot input channels, mask channels).
+        n_styles: N, number of style codes / style heads of every discriminator.
+        backbone_widths: output channels of the 3×3×3 backbone convs at coarse resolution.
+        backbone_dilations: dilation of each backbone conv (same length).
+        levels: one ``LevelSpec`` per doubling level; output factor = 2**len(levels).
+        discriminators: one ``DiscriminatorSpec`` per level.
+        style_dim: length of each style code z (8).
+        use_part_labels: False = the "w/o part labels" ablation (no part one-hot inputs).
+        leaky_slope: LeakyReLU slope everywhere (0.02).
+        clamp_slope: slope of the output's leaky clamp outside [0, 1] (0.002).
+        losses: loss weights and variants.
+    """
+
+    n_parts: int
+    n_styles: int
+    backbone_widths: tuple[int, ...]
+    backbone_dilations: tuple[int, ...]
+    levels: tuple[LevelSpec, ...]
+    discriminators: tuple[DiscriminatorSpec, ...]
+    style_dim: int = 8
+    use_part_labels: bool = True
+    leaky_slope: float = 0.02
+    clamp_slope: float = 0.002
+    losses: LossConfig = field(default_factory=LossConfig)
+
+    def __post_init__(self) -> None:
+        _validate(self)
+
+    # ------------------------------------------------------------------ layouts
+
+    @classmethod
+    def lean(cls, n_parts: int, n_styles: int, **overrides: Any) -> "ModelConfig":
+        """CPU default (measured, see the report in the model docs): 16³ → 256³ in ~1–2 s on 2 cores.
+
+        64-channel backbone at 16³ (dilations 1, 2, 2, 1); ConvTranspose levels of
+        64/32/16 channels at 32³/64³/128³ with one 3×3×3 conv each (none at 128³ —
+        that level dominates the cost); the last level is a 3×3×3 conv at 128³
+        predicting the 8 sub-voxel occupancies, voxel-shuffled to 256³ (no conv at 256³).
+        Light discriminators (8→32 channels) with the paper's receptive fields 7/9/18/18.
+        """
+        base = cls(
+            n_parts=n_parts,
+            n_styles=n_styles,
+            backbone_widths=(64, 64, 64, 64),
+            backbone_dilations=(1, 2, 2, 1),
+            levels=(
+                LevelSpec(64, Upsampler.CONV_TRANSPOSE, 1, 3),
+                LevelSpec(32, Upsampler.CONV_TRANSPOSE, 1, 3),
+                LevelSpec(16, Upsampler.CONV_TRANSPOSE, 0, 3),
+                LevelSpec(1, Upsampler.VOXEL_SHUFFLE, 0, 0),
+            ),
+            discriminators=(
+                _rf7((8, 16, 32)),
+                _rf9((8, 16, 32, 32)),
+                _rf18((8, 16, 32, 32, 32)),
+                _rf18((8, 16, 32, 32, 32)),
+            ),
+        )
+        return dataclasses.replace(base, **overrides) if overrides else base
+
+    @classmethod
+    def paper(cls, n_parts: int, n_styles: int, **overrides: Any) -> "ModelConfig":
+        """The published layout (method.md §1.1/§1.2): g_dim 32, 18.8 M + 10.9 M parameters for P=5, N=32."""
+        base = cls(
+            n_parts=n_parts,
+            n_styles=n_styles,
+            backbone_widths=(32, 64, 128, 256, 512),
+            backbone_dilations=(1, 2, 2, 1, 1),
+            levels=(
+                LevelSpec(256, Upsampler.CONV_TRANSPOSE, 1, 3),
+                LevelSpec(128, Upsampler.CONV_TRANSPOSE, 1, 3),
+                LevelSpec(64, Upsampler.CONV_TRANSPOSE, 1, 3),
+                LevelSpec(32, Upsampler.CONV_TRANSPOSE, 0, 3),
+            ),
+            discriminators=(
+                _rf7((32, 64, 128)),
+                _rf9((32, 64, 128, 256)),
+                _rf18((32, 64, 128, 256, 512)),
+                _rf18((32, 64, 128, 256, 512)),
+            ),
+        )
+        return dataclasses.replace(base, **overrides) if overrides else base
+
+    def scaled(self, width_mult: float) -> "ModelConfig":
+        """Same layout with every generator/discriminator width multiplied (≥ 1; ``head_kernel 0`` levels keep width 1).
+
+        Receptive fields, strides and alignment are unchanged; used for small test models.
+        """
+
+        def s(c: int) -> int:
+            return max(1, int(round(c * width_mult)))
+
+        levels = tuple(
+            lv if lv.head_kernel == 0 else dataclasses.replace(lv, width=s(lv.width)) for lv in self.levels
+        )
+        discs = tuple(
+            DiscriminatorSpec(tuple(dataclasses.replace(layer, width=s(layer.width)) for layer in d.layers))
+            for d in self.discriminators
+        )
+        return dataclasses.replace(
+            self,
+            backbone_widths=tuple(s(c) for c in self.backbone_widths),
+            levels=levels,
+            discriminators=discs,
+        )
+
+    # ------------------------------------------------------------------ derived
+
+    @property
+    def n_levels(self) -> int:
+        return len(self.levels)
+
+    @property
+    def factor(self) -> int:
+        """Total upsampling factor (16 for four levels)."""
+        return 2 ** len(self.levels)
+
+    # ------------------------------------------------------------------ JSON
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON types only (dicts, lists, str, int, float, bool)."""
+        return _to_plain(self)
+
+    @classmethod
+    def from_dict(cls, data: Any, *, path: str = "config") -> "ModelConfig":
+        """Inverse of ``to_dict``; raises ``DetailizeError`` (field = path inside the config)."""
+        r = _Reader(data, path)
+        cfg_kwargs = dict(
+            n_parts=r.int("n_parts"),
+            n_styles=r.int("n_styles"),
+            backbone_widths=tuple(r.int_list("backbone_widths")),
+            backbone_dilations=tuple(r.int_list("backbone_dilations")),
+            levels=tuple(_level_from(x, f"{path}.levels[{i}]") for i, x in enumerate(r.list("levels"))),
+            discriminators=tuple(
+                _disc_from(x, f"{path}.discriminators[{i}]") for i, x in enumerate(r.list("discriminators"))
+            ),
+            style_dim=r.int("style_dim"),
+            use_part_labels=r.bool("use_part_labels"),
+            leaky_slope=r.float("leaky_slope"),
+            clamp_slope=r.float("clamp_slope"),
+            losses=_losses_from(r.get("losses"), f"{path}.losses"),
+        )
+        r.done()
+        try:
+            return cls(**cfg_kwargs)
+        except DetailizeError as err:
+            if err.field and not err.field.startswith(path):
+                err.field = f"{path}.{err.field}"
+            raise
+
+
+# ---------------------------------------------------------------------- validation
+
+
+def _bad(message: str, field_: str, hint: str) -> DetailizeError:
+    return DetailizeError(message, field=field_, hint=hint)
+
+
+def _validate(cfg: ModelConfig) -> None:
+    for name in ("n_parts", "n_styles", "style_dim"):
+        if getattr(cfg, name) < 1:
+            raise _bad(f"{name} must be ≥ 1, got {getattr(cfg, name)}", name, "use a positive count")
+    if not cfg.backbone_widths or len(cfg.backbone_widths) != len(cfg.backbone_dilations):
+        raise _bad(
+            "backbone_widths and backbone_dilations must be non-empty and of equal length",
+            "backbone_dilations",
+            "give one dilation per backbone conv",
+        )
+    for i, (w, d) in enumerate(zip(cfg.backbone_widths, cfg.backbone_dilations)):
+        if w < 1 or d < 1:
+            raise _bad(f"backbone conv {i} has width {w}, dilation {d}", f"backbone_widths[{i}]", "both must be ≥ 1")
+    if not cfg.levels:
+        raise _bad("at least one generator level is needed", "levels", "16× needs four levels")
+    for i, lv in enumerate(cfg.levels):
+        where = f"levels[{i}]"
+        if lv.width < 1 or lv.n_convs < 0:
+            raise _bad(f"level {i}: width {lv.width}, n_convs {lv.n_convs}", where, "width ≥ 1, n_convs ≥ 0")
+        if not isinstance(lv.upsampler, Upsampler):
+            raise _bad(f"level {i}: unknown upsampler {lv.upsampler!r}", f"{where}.upsampler", "see Upsampler")
+        if lv.head_kernel == 0:
+            if lv.width != 1 or lv.n_convs != 0 or i != len(cfg.levels) - 1:
+                raise _bad(
+                    "head_kernel 0 (no head) needs width 1, n_convs 0 and the last level",
+                    f"{where}.head_kernel",
+                    "use an odd head kernel, or make this the last level with width 1",
+                )
+        elif lv.head_kernel < 0 or lv.head_kernel % 2 == 0:
+            raise _bad(f"level {i}: head_kernel {lv.head_kernel} must be odd or 0", f"{where}.head_kernel", "use 1 or 3")
+    if len(cfg.discriminators) != len(cfg.levels):
+        raise _bad(
+            f"{len(cfg.discriminators)} discriminators for {len(cfg.levels)} levels",
+            "discriminators",
+            "give one discriminator per level",
+        )
+    for i, d in enumerate(cfg.discriminators):
+        where = f"discriminators[{i}]"
+        if not d.layers:
+            raise _bad("a discriminator needs at least one conv", where, "see ModelConfig.paper()")
+        for k, layer in enumerate(d.layers):
+            if layer.width < 1 or layer.kernel < 1 or layer.stride < 1:
+                raise _bad(f"bad layer {layer}", f"{where}.layers[{k}]", "width, kernel, stride ≥ 1")
+        if not d._alignment_exact():
+            raise _bad(
+                f"receptive field {d.receptive_field()} and stride {d.stride()} give no integer mask alignment",
+                where,
+                "need (RF − stride) divisible by 2·stride, e.g. RF 7/9 at stride 1, RF 18 at stride 2",
+            )
+        if (2 ** (i + 1)) % d.stride():
+            raise _bad(
+                f"stride {d.stride()} exceeds the level's upsampling factor {2 ** (i + 1)}",
+                where,
+                "use a smaller stride at the first levels",
+            )
+    if not 0 < cfg.leaky_slope < 1 or not 0 < cfg.clamp_slope < 1:
+        raise _bad("slopes must lie in (0, 1)", "leaky_slope", "the paper uses 0.02 and 0.002")
+    lc = cfg.losses
+    for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma"):
+        if getattr(lc, name) < 0:
+            raise _bad(f"{name} must be ≥ 0", f"losses.{name}", "weights are non-negative")
+    if lc.joint_radius < 0 or lc.smoothing_passes < 0:
+        raise _bad("joint_radius and smoothing_passes must be ≥ 0", "losses.joint_radius", "use 2 and 4")
+    if not isinstance(lc.down_loss, DownLoss) or not isinstance(lc.target_smoothing, TargetSmoothing):
+        raise _bad("unknown loss variant", "losses.down_loss", "see DownLoss / TargetSmoothing")
+
+
+# ---------------------------------------------------------------------- JSON helpers
+
+
+def _to_plain(obj: Any) -> Any:
+    if dataclasses.is_dataclass(obj):
+        return {f.name: _to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    if isinstance(obj, Enum):
+        return obj.value
+    if isinstance(obj, (tuple, list)):
+        return [_to_plain(x) for x in obj]
+    return obj
+
+
+class _Reader:
+    """Strict reader of one JSON object: every key must be read exactly once, types are not coerced."""
+
+    def __init__(self, data: Any, path: str) -> None:
+        if not isinstance(data, dict):
+            raise _bad(f"expected an object, got {type(data).__name__}", path, "re-save the checkpoint")
+        self.data, self.path, self.seen = data, path, set()
+
+    def get(self, key: str) -> Any:
+        if key not in self.data:
+            raise _bad(f"missing key {key!r}", f"{self.path}.{key}", "the checkpoint is from another version")
+        self.seen.add(key)
+        return self.data[key]
+
+    def int(self, key: str) -> int:
+        v = self.get(key)
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise _bad(f"expected an integer, got {v!r}", f"{self.path}.{key}", "use an integer")
+        return v
+
+    def float(self, key: str) -> float:
+        v = self.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise _bad(f"expected a number, got {v!r}", f"{self.path}.{key}", "use a number")
+        return float(v)
+
+    def bool(self, key: str) -> bool:
+        v = self.get(key)
+        if not isinstance(v, bool):
+            raise _bad(f"expected true/false, got {v!r}", f"{self.path}.{key}", "use a boolean")
+        return v
+
+    def list(self, key: str) -> list:
+        v = self.get(key)
+        if not isinstance(v, list):
+            raise _bad(f"expected a list, got {v!r}", f"{self.path}.{key}", "use a list")
+        return v
+
+    def int_list(self, key: str) -> list[int]:
+        v = self.list(key)
+        for i, x in enumerate(v):
+            if isinstance(x, bool) or not isinstance(x, int):
+                raise _bad(f"expected an integer, got {x!r}", f"{self.path}.{key}[{i}]", "use integers")
+        return v
+
+    def enum(self, key: str, kind: type[Enum]) -> Any:
+        v = self.get(key)
+        try:
+            return kind(v)
+        except ValueError:
+            allowed = ", ".join(m.value for m in kind)  # type: ignore[attr-defined]
+            raise _bad(f"unknown value {v!r}", f"{self.path}.{key}", f"use one of: {allowed}") from None
+
+    def done(self) -> None:
+        extra = sorted(set(self.data) - self.seen)
+        if extra:
+            raise _bad(f"unknown key {extra[0]!r}", f"{self.path}.{extra[0]}", "remove it or update decollage")
+
+
+def _level_from(data: Any, path: str) -> LevelSpec:
+    r = _Reader(data, path)
+    lv = LevelSpec(r.int("width"), r.enum("upsampler", Upsampler), r.int("n_convs"), r.int("head_kernel"))
+    r.done()
+    return lv
+
+
+def _disc_from(data: Any, path: str) -> DiscriminatorSpec:
+    r = _Reader(data, path)
+    layers = []
+    for i, x in enumerate(r.list("layers")):
+        lr = _Reader(x, f"{path}.layers[{i}]")
+        layers.append(DiscLayer(lr.int("width"), lr.int("kernel"), lr.int("stride")))
+        lr.done()
+    r.done()
+    return DiscriminatorSpec(tuple(layers))
+
+
+def _losses_from(data: Any, path: str) -> LossConfig:
+    r = _Reader(data, path)
+    lc = LossConfig(
+        beta_recon=r.float("beta_recon"),
+        gamma_down=r.float("gamma_down"),
+        gamma_up=r.float("gamma_up"),
+        alpha_joint=r.float("alpha_joint"),
+        alpha_other=r.float("alpha_other"),
+        joint_radius=r.int("joint_radius"),
+        down_loss=r.enum("down_loss", DownLoss),
+        stop_gradient=r.bool("stop_gradient"),
+        down_hinge_high=r.float("down_hinge_high"),
+        target_smoothing=r.enum("target_smoothing", TargetSmoothing),
+        smoothing_sigma=r.float("smoothing_sigma"),
+        smoothing_passes=r.int("smoothing_passes"),
+    )
+    r.done()
+    return lc

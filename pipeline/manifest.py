@@ -1,0 +1,63 @@
+"""``manifest.json``: one file per build describing inputs, outputs, geometry and timings.
+
+Format version 1. Paths of outputs are relative to the manifest's folder.
+Axes and units are stated explicitly so that a consumer never has to guess.
+Timings are the only non-deterministic values; they live under ``timings_s``.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from pathlib import Path
+
+from pipeline import __version__
+from pipeline.grid import ISO_LEVEL
+
+MANIFEST_NAME = "manifest.json"
+MANIFEST_FORMAT = 1
+
+AXES = {"up": "+Y", "front": "+Z", "right": "+X", "units": "m", "convention": "glTF 2.0"}
+
+
+def manifest_dict(loaded, reports) -> dict:
+    from pipeline.build import sha256_file
+
+    assets = []
+    for r in reports:
+        entry = {
+            "name": r.name,
+            "status": r.status,
+            "recipe_index": r.index,
+            "inputs": r.inputs,
+            "outputs": r.outputs,
+            **r.info,
+            "warnings": r.warnings,
+            "timings_s": r.timings_s,
+        }
+        if r.error:
+            entry["error"] = r.error
+        assets.append(entry)
+    return {
+        "format": MANIFEST_FORMAT,
+        "tool": {"name": "decollage", "version": __version__, "python": platform.python_version()},
+        "recipe": {"path": str(loaded.path), "sha256": sha256_file(loaded.path)},
+        "axes": AXES,
+        "iso_level": ISO_LEVEL,
+        "summary": {
+            "assets": len(reports),
+            "built": sum(r.status == "built" for r in reports),
+            "failed": sum(r.status == "failed" for r in reports),
+        },
+        "assets": assets,
+    }
+
+
+def write_manifest(out_dir: Path, loaded, reports) -> Path:
+    """Write ``out_dir/manifest.json`` atomically; returns its path."""
+    from pipeline.export import write_bytes_atomic
+
+    path = out_dir / MANIFEST_NAME
+    text = json.dumps(manifest_dict(loaded, reports), indent=2, sort_keys=False) + "\n"
+    write_bytes_atomic(path, text.encode("utf-8"))
+    return path

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Set up (or update) the project's virtual environment in .venv.
+#   bash scripts/install.sh            runtime only
+#   bash scripts/install.sh test       runtime + test tools
+#   bash scripts/install.sh cadquery   the optional cadquery runtime in .venv-cadquery
+# torch is installed first and pinned, so pip takes the local CPU build
+# instead of pulling a multi-GB CUDA build; constraints.txt pins the rest.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PYTHON="${PYTHON:-python3}"
+
+if [ "${1:-}" = "cadquery" ]; then
+    exec bash scripts/install_cadquery.sh
+fi
+
+# Drop two kinds of known noise, keep the exit status: this machine's pip
+# config lists local indexes that may not exist, and the OCP wheel's bundled
+# fontconfig warns about a config element it does not know.
+quiet() { "$@" 2> >(grep -v -e "is ignored: it is neither" -e "Fontconfig warning" >&2); }
+
+if [ ! -x .venv/bin/python ]; then
+    "$PYTHON" -m venv .venv
+fi
+export PIP_DISABLE_PIP_VERSION_CHECK=1
+quiet .venv/bin/python -m pip install --quiet --upgrade pip
+quiet .venv/bin/python -m pip install --quiet -c constraints.txt "torch==2.13.0"
+extra=""
+if [ "${1:-}" = "test" ]; then extra="[test]"; fi
+quiet .venv/bin/python -m pip install --quiet -c constraints.txt -e ".${extra}"
+# pip's resolver cannot see every conflict (ecosystem.md §1.1): prove the stack imports.
+quiet .venv/bin/python -c "import build123d, trimesh, torch, skimage, fast_simplification, fontTools, shapely, pipeline.cli; print('decollage environment ready: torch', torch.__version__, '| build123d', build123d.__version__)"
