@@ -143,26 +143,34 @@ class TextSource(_Strict):
 class _Placed(_Strict):
     name: Optional[str] = Field(None, pattern=NAME_PATTERN, description="Part name (required on top-level parts).")
     at: Vec3 = Field((0.0, 0.0, 0.0), description="Translation, in the source's units.")
-    rotate_deg: Vec3 = Field((0.0, 0.0, 0.0), description="Rotation about X, then Y, then Z, in degrees.")
+    rotate_deg: Vec3 = Field((0.0, 0.0, 0.0), description="Rotation about the fixed X, then Y, then Z axes, in degrees; applied before 'at'.")
 
 
 class BoxShape(_Placed):
+    """A box of ``size`` (x, y, z), centred at the origin before placement."""
+
     shape: Literal["box"]
     size: PositiveVec3
 
 
 class CylinderShape(_Placed):
+    """A cylinder along +Z standing on z = 0 (spans z ∈ [0, height]), centred on the Z axis."""
+
     shape: Literal["cylinder"]
     radius: PositiveFloat
     height: PositiveFloat
 
 
 class SphereShape(_Placed):
+    """A sphere centred at the origin before placement."""
+
     shape: Literal["sphere"]
     radius: PositiveFloat
 
 
 class ConeShape(_Placed):
+    """A cone / frustum along +Z: ``radius_bottom`` at z = 0, ``radius_top`` at z = height."""
+
     shape: Literal["cone"]
     radius_bottom: NonNegativeFloat
     radius_top: NonNegativeFloat = 0.0
@@ -176,6 +184,8 @@ class ConeShape(_Placed):
 
 
 class TorusShape(_Placed):
+    """A torus centred at the origin, its ring in the XY plane (axis +Z)."""
+
     shape: Literal["torus"]
     major_radius: PositiveFloat
     minor_radius: PositiveFloat
@@ -188,7 +198,7 @@ class TorusShape(_Placed):
 
 
 class ExtrudeShape(_Placed):
-    """A closed 2-D polygon in the XY plane, extruded along +Z (the CAD up axis by default)."""
+    """A closed 2-D polygon in the XY plane (any winding), extruded from z = 0 to z = height (+Z, the CAD up axis by default)."""
 
     shape: Literal["extrude"]
     profile: list[Vec2] = Field(min_length=3)

@@ -62,7 +62,7 @@ if TYPE_CHECKING:
 #: Default chord tolerance, as a fraction of a part's bounding-box diagonal.
 DEFAULT_RELATIVE_TOLERANCE: float = 1e-3
 
-#: Angular tolerance of the tessellation, radians (≈ 11.5°: ≥ 32 segments per full circle,
+#: Angular tolerance of the tessellation, radians (≈ 11.5°: about 32 segments per full circle at most coarse,
 #: enough for a coarse voxel grid; finer settings multiply triangle counts for no visible gain).
 ANGULAR_TOLERANCE_RAD: float = 0.2
 

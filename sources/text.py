@@ -330,12 +330,14 @@ def _fit_bevel(regions: Sequence["manifold3d.CrossSection"], bevel: float) -> fl
     return lo
 
 
-def _glyph_solid(region: "manifold3d.CrossSection", depth: float, bevel: float) -> tuple[np.ndarray, np.ndarray]:
+def _glyph_solid(region: "manifold3d.CrossSection", depth: float, bevel: float,
+                 char: str) -> tuple[np.ndarray, np.ndarray]:
     """Extrude a region to z ∈ [-depth/2, depth/2] with an optional front chamfer.
 
+    ``depth`` and ``bevel`` are in font units; ``char`` only names the glyph in errors.
     Returns vertices (V, 3) float64 and faces (F, 3) int64, font units.
     """
-    from manifold3d import Manifold, OpType
+    from manifold3d import Error, Manifold, OpType
 
     body = Manifold.extrude(region, depth - bevel)
     if bevel > 0:
@@ -346,6 +348,10 @@ def _glyph_solid(region: "manifold3d.CrossSection", depth: float, bevel: float) 
             if not inset.is_empty():
                 pieces.append(Manifold.extrude(inset, step).translate((0.0, 0.0, depth - bevel + (i - 1) * step)))
         body = Manifold.batch_boolean(pieces, OpType.Add)
+    if body.status() != Error.NoError or body.is_empty():
+        # Not expected for a valid cross-section; say which glyph rather than return a hole-y mesh.
+        raise SourceError(f"could not build a solid for {char!r} ({body.status().name})", field="text",
+                          hint="try another font, or bevel_m: 0")
     mesh = body.translate((0.0, 0.0, -depth / 2)).to_mesh64()
     vertices = np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3]
     return vertices, np.asarray(mesh.tri_verts, dtype=np.int64)
@@ -389,7 +395,8 @@ def load(spec: TextSource, base_dir: Path) -> PartMeshes:
             warnings.append(f"bevel_m {bevel_m:g} would make thin glyph parts vanish; clamped to {fitted:.3g} m")
             bevel_m = fitted
 
-    solids = {g: _glyph_solid(r, depth_m / scale, bevel_m / scale) for g, r in regions.items()}
+    first_char = {p.glyph: p.char for p in reversed(visible)}
+    solids = {g: _glyph_solid(r, depth_m / scale, bevel_m / scale, first_char[g]) for g, r in regions.items()}
     parts: dict[str, trimesh.Trimesh] = {}
     for index, p in enumerate(visible):
         vertices, faces = solids[p.glyph]

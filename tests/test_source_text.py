@@ -339,6 +339,13 @@ def test_too_large_bevel_is_clamped_with_a_warning():
     assert len(result.parts["glyph_01_i"].split(only_watertight=False)) == 2  # the dot survived
 
 
+def test_bevel_deeper_than_half_the_depth_is_clamped():
+    result = parts_of("O", size_m=0.2, depth_m=0.02, bevel_m=0.015)
+    assert any("half the depth" in w for w in result.warnings)
+    mesh = result.parts["glyph_00_O"]
+    assert mesh.is_watertight and np.allclose(mesh.bounds[:, 2], [-0.01, 0.01])
+
+
 # --------------------------------------------------------------------------- other fonts
 
 
