@@ -14,10 +14,11 @@ Solid fill (numpy ray parity, no trimesh ``voxelized().fill()``/``contains()``,
 which fatten shapes and fail on open meshes): triangles are expressed in sample
 units with sample centres on integers; rays run along one grid axis through
 every column of sample centres (shifted by ~1e-7 so they do not hit edges or
-vertices), each crossing toggles the first sample beyond it (``np.bincount``
-collects the toggles), and a cumulative sum's parity marks the inside. Edge
-hits that survive the shift follow a half-open (top-left) rule so that a ray
-through a shared edge counts once.
+vertices), each crossing toggles the first sample beyond it, and a cumulative
+sum's parity marks the inside. Crossings are counted by sorting them (at 256³
+~25× faster than ``np.bincount``, whose grid-sized int64 result dominates).
+Edge hits that survive the shift follow a half-open (top-left) rule so that a
+ray through a shared edge counts once.
 
 Connected components, because parity cancels where two closed bodies overlap:
 each part mesh is split into edge-connected components and every watertight
@@ -253,7 +254,8 @@ def _mesh_samples(mesh, dims, origin, voxel, supersample) -> tuple[np.ndarray, b
     count = np.zeros(shape, dtype=np.int16)
     closed = [c for c in range(n_comp) if comp_closed[c]]
     volumes = {c: _signed_volume(tri[members[c]]) for c in closed}
-    flip = -1.0 if sum(volumes.values()) < 0 else 1.0
+    # Only consistently oriented components have a meaningful volume sign.
+    flip = -1.0 if sum(volumes[c] for c in closed if comp_oriented[c]) < 0 else 1.0
     # Solids first, so that each inward-facing component can ask whether it lies inside them.
     solids = [c for c in closed if not comp_oriented[c] or flip * volumes[c] >= 0]
     cavities = sorted(set(closed) - set(solids))
@@ -274,8 +276,9 @@ def _fill_into(count: np.ndarray, tri: np.ndarray, *, vote: bool, sign: int) -> 
     samples mostly lie inside what is already counted, else add.
     """
     shape = np.asarray(count.shape)
-    start = np.maximum(np.ceil(tri.min(axis=(0, 1))).astype(np.int64), 0)
-    stop = np.minimum(np.floor(tri.max(axis=(0, 1))).astype(np.int64) + 1, shape)
+    corners = tri.reshape(-1, 3)
+    start = np.maximum(np.ceil(corners.min(axis=0)).astype(np.int64), 0)
+    stop = np.minimum(np.floor(corners.max(axis=0)).astype(np.int64) + 1, shape)
     if np.any(stop <= start):
         return  # thinner than the sample spacing: no sample centre inside
     local_shape = tuple(int(n) for n in stop - start)
@@ -284,13 +287,18 @@ def _fill_into(count: np.ndarray, tri: np.ndarray, *, vote: bool, sign: int) -> 
         votes = sum(_parity_fill(local, local_shape, axis).view(np.uint8) for axis in range(3))
         solid = votes >= 2
     else:
-        # Rays along the longest side: fewest columns, so fewest (triangle, ray) pairs.
-        solid = _parity_fill(local, local_shape, int(np.argmax(local_shape)))
+        # Rays along the longest side: fewest columns, so fewest (triangle, ray) pairs;
+        # ties go to z, whose result needs no transpose.
+        solid = _parity_fill(local, local_shape, 2 - int(np.argmax(local_shape[::-1])))
     window = count[tuple(slice(a, b) for a, b in zip(start, stop))]
     if sign == 0:
-        inside = np.count_nonzero(window[solid] > 0)
+        inside = np.count_nonzero((window > 0) & solid)
         sign = -1 if 2 * inside >= np.count_nonzero(solid) else 1
-    window[solid] += np.int16(sign)
+    # Whole-window add/subtract of the bool mask: much faster than boolean indexing.
+    if sign > 0:
+        window += solid
+    else:
+        window -= solid
 
 
 def _signed_volume(tri: np.ndarray) -> float:
@@ -299,40 +307,44 @@ def _signed_volume(tri: np.ndarray) -> float:
 
 
 def _components(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Edge-connected components of a triangle soup.
+    """Edge-connected components of a triangle mesh.
 
-    Returns (F,) component id per face, (C,) whether each component is closed
-    (every edge used by exactly two faces) and (C,) whether it is consistently
-    oriented (no directed edge used twice). Vertices are merged by exact
-    position first, so unmerged meshes (e.g. from STL) still connect.
+    Returns (F,) component id per face (numbered in order of first face), (C,)
+    whether each component is closed (every edge used by exactly two faces) and
+    (C,) whether it is consistently oriented (the two uses of each edge run in
+    opposite directions). When the mesh is not closed as indexed, vertices are
+    merged by exact position first, so unmerged meshes (e.g. raw STL) still connect.
     """
+    edges = _edge_table(faces)
+    if np.any(edges[2] != 2):
+        _, vid = np.unique(vertices, axis=0, return_inverse=True)
+        edges = _edge_table(vid.reshape(-1)[faces])
+    edge_id, dir_flag, edge_uses = edges
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    _, vid = np.unique(vertices, axis=0, return_inverse=True)
-    f = vid.reshape(-1)[faces]
-    n_vert = int(f.max()) + 1
-    directed = f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    undirected = np.sort(directed, axis=1)
-    edge_key = undirected[:, 0] * n_vert + undirected[:, 1]
-    _, edge_id, edge_uses = np.unique(edge_key, return_inverse=True, return_counts=True)
-    _, dir_id, dir_uses = np.unique(directed[:, 0] * n_vert + directed[:, 1], return_inverse=True,
-                                    return_counts=True)
     n_faces, n_edges = len(faces), len(edge_uses)
     face_of = np.repeat(np.arange(n_faces), 3)
     # Bipartite graph faces ↔ edges: faces sharing an edge end up in one component.
     graph = coo_matrix((np.ones(len(face_of), dtype=np.int8), (face_of, n_faces + edge_id)),
                        shape=(n_faces + n_edges, n_faces + n_edges))
     _, labels = connected_components(graph, directed=False)
-    comp_of_face = labels[:n_faces]
     # Renumber components by first face so that ids are deterministic and dense.
-    _, first, comp = np.unique(comp_of_face, return_index=True, return_inverse=True)
-    rank = np.argsort(np.argsort(first))
-    comp = rank[comp]
+    _, first, comp = np.unique(labels[:n_faces], return_index=True, return_inverse=True)
+    comp = np.argsort(np.argsort(first))[comp]
     n_comp = len(first)
-    bad_edge = np.bincount(comp[face_of], weights=(edge_uses[edge_id] != 2), minlength=n_comp)
-    bad_dir = np.bincount(comp[face_of], weights=(dir_uses[dir_id] != 1), minlength=n_comp)
+    forward = np.bincount(edge_id, weights=dir_flag, minlength=n_edges)
+    bad_edge = np.bincount(comp[face_of], weights=edge_uses[edge_id] != 2, minlength=n_comp)
+    bad_dir = np.bincount(comp[face_of], weights=forward[edge_id] != 1, minlength=n_comp)
     return comp, bad_edge == 0, bad_dir == 0
+
+
+def _edge_table(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(3F,) undirected edge id per face edge, (3F,) 1.0 where it runs low→high index, (E,) uses per edge."""
+    directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    lo, hi = directed.min(axis=1), directed.max(axis=1)
+    _, edge_id, uses = np.unique(lo * (int(faces.max()) + 1) + hi, return_inverse=True, return_counts=True)
+    return edge_id, (directed[:, 0] < directed[:, 1]).astype(np.float64), uses
 
 
 def _parity_fill(tri: np.ndarray, shape: tuple[int, int, int], axis: int) -> np.ndarray:
@@ -398,9 +410,14 @@ def _parity_fill(tri: np.ndarray, shape: tuple[int, int, int], axis: int) -> np.
         hits.append(((i[keep] * nv + j[keep]) * nw + k[keep]))
         begin = end
 
-    toggles = np.bincount(np.concatenate(hits), minlength=nu * nv * nw)
+    # Only the parity of each sample's crossing count matters. Counting the few
+    # hits by sorting is ~25x faster at 256³ than np.bincount, whose grid-sized
+    # int64 result costs more than all the ray work.
+    where, uses = np.unique(np.concatenate(hits), return_counts=True)
+    toggles = np.zeros(nu * nv * nw, dtype=np.uint8)
+    toggles[where[(uses & 1) == 1]] = 1
     # uint8 wrap-around keeps parity (256 is even).
-    parity = np.cumsum(toggles.astype(np.uint8).reshape(nu, nv, nw), axis=2, dtype=np.uint8) & 1
+    parity = np.cumsum(toggles.reshape(nu, nv, nw), axis=2, dtype=np.uint8) & 1
     return parity.view(bool).transpose(np.argsort(perm))
 
 
@@ -430,8 +447,9 @@ class _LabelVote:
     def add(self, index: int, coverage: np.ndarray) -> None:
         """Offer part ``index``'s (X, Y, Z) coverage; strictly larger wins, so ties keep the earlier part."""
         better = coverage > self.best
-        self.best[better] = coverage[better]
-        self.label[better] = index
+        # copyto with where= is several times faster than boolean indexing on big grids.
+        np.copyto(self.best, coverage, where=better)
+        np.copyto(self.label, np.int16(index), where=better)
         if self.keep_thin:
             top = float(coverage.max())
             if top > 0:

@@ -23,8 +23,8 @@ quiet() { "$@" 2> >(grep -v -e "is ignored: it is neither" -e "Fontconfig warnin
 echo "creating $venv_dir with $($base_python --version 2>&1)"
 "$base_python" -m venv "$venv_dir"
 quiet "$venv_dir/bin/python" -m pip install --quiet --upgrade pip
-# Let pip pick cadquery's own OCP (7.9.x); nothing else goes into this venv.
-quiet "$venv_dir/bin/python" -m pip install --quiet "cadquery==$cadquery_version"
+# cadquery 2.8.0 with the OCP build it was checked with; nothing else goes into this venv.
+quiet "$venv_dir/bin/python" -m pip install --quiet "cadquery==$cadquery_version" "cadquery-ocp==7.9.3.1.1"
 
 # pip check does not catch a broken OCP install; only an import does.
 quiet "$venv_dir/bin/python" -c "import cadquery; v = cadquery.Workplane().box(1, 1, 1).val().Volume(); assert abs(v - 1) < 1e-9, v; print('cadquery', cadquery.__version__, 'OK')"

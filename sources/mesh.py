@@ -1,0 +1,233 @@
+"""The ``mesh`` source: a mesh file (OBJ, STL, PLY, OFF, GLB, GLTF) → named part meshes, metres, +Y up.
+
+Parts (``parts_from``):
+
+- ``nodes``: every mesh instance of the file is a part. For GLB/GLTF that is
+  each scene-graph node with geometry, its world transform baked in, named
+  after the node; for OBJ each ``o`` object / ``g`` group (or, in a file with
+  neither, each material). A file holding a single mesh instance (always the
+  case for STL, PLY and OFF; also a GLB with one node) gives one part named
+  after the file stem.
+- ``whole``: everything merged into one part named after the file stem.
+
+Names are sanitised to ``[A-Za-z0-9][A-Za-z0-9_.-]*`` (other characters become
+``_``) and made unique with ``_2``, ``_3``... suffixes. Parts are ordered by
+their name in the file (scene-graph order is an implementation detail of the
+loader, so sorting keeps the order deterministic).
+
+Each part is rebuilt from positions and faces only (colours, UVs and normals
+are dropped, so vertices split for texturing merge again), duplicate vertices
+are merged and degenerate faces dropped, then it is scaled to metres
+(``units`` × ``scale``) and rotated from ``up_axis`` onto +Y by
+``sources.frames``. A part that is not watertight is kept, with a warning; the
+voxelizer fills it by a 3-axis vote.
+
+Every failure is a ``SourceError`` with ``field="path"``; no exception from
+trimesh escapes.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pipeline.errors import SourceError
+from pipeline.recipe import MeshSource, PartsFrom
+from sources.base import PartMeshes
+from sources.frames import transform_mesh
+
+if TYPE_CHECKING:
+    import trimesh
+
+#: File extensions this source reads (lower case, without the dot).
+SUPPORTED_FORMATS: tuple[str, ...] = ("obj", "stl", "ply", "off", "glb", "gltf")
+
+_NAME_BAD_CHARS = re.compile(r"[^A-Za-z0-9_.\-]")
+_OBJ_SPLIT_DIRECTIVE = re.compile(rb"^[ \t]*[og][ \t]", re.MULTILINE)
+
+
+def load(spec: MeshSource, base_dir: Path) -> PartMeshes:
+    """Read ``spec.path`` (relative to ``base_dir``) into named parts in the canonical frame."""
+    path = resolve_path(spec.path, base_dir)
+    ext = path.suffix.lower().lstrip(".")
+    raw = _read_instances(path, ext)
+    if not raw:
+        raise SourceError("mesh has no faces", field="path",
+                          hint="the file holds only points or lines; export the surface as triangles")
+    if spec.parts_from == PartsFrom.WHOLE or len(raw) == 1:
+        raw = [(path.stem, _concatenate([mesh for _, mesh in raw]))]
+
+    scale = spec.units.metres * spec.scale
+    parts: dict[str, "trimesh.Trimesh"] = {}
+    warnings: list[str] = []
+    for original, mesh in sorted(raw, key=lambda item: item[0]):
+        name = unique_name(sanitize_name(original), parts)
+        cleaned = _clean(mesh, name)
+        parts[name] = transform_mesh(cleaned, spec.up_axis, scale)
+        if not cleaned.is_watertight:
+            warnings.append(f"part '{name}' is not watertight (it has open or non-manifold edges)")
+    if not parts:
+        raise SourceError("mesh has no faces", field="path",
+                          hint="every face is degenerate; check the file in a mesh viewer")
+    return PartMeshes(parts=parts, warnings=warnings, input_files=[path])
+
+
+def resolve_path(relative: str, base_dir: Path) -> Path:
+    """The file's absolute path; refuses missing files, folders and unsupported extensions."""
+    raw = Path(relative).expanduser()
+    path = (raw if raw.is_absolute() else Path(base_dir) / raw).resolve()
+    if not path.exists():
+        raise SourceError(f"file not found: {path}", field="path",
+                          hint="the path is relative to the recipe's folder")
+    if not path.is_file():
+        raise SourceError(f"not a file: {path}", field="path", hint="name a mesh file")
+    ext = path.suffix.lower().lstrip(".")
+    if ext not in SUPPORTED_FORMATS:
+        raise SourceError(f"unsupported mesh format {path.suffix or '(no extension)'!r}", field="path",
+                          hint="supported: " + ", ".join("." + f for f in SUPPORTED_FORMATS))
+    return path
+
+
+def sanitize_name(name: str) -> str:
+    """A part name matching ``^[A-Za-z0-9][A-Za-z0-9_.-]*$`` ("part" when nothing usable is left)."""
+    cleaned = _NAME_BAD_CHARS.sub("_", str(name).strip())
+    cleaned = cleaned.lstrip("_.-")
+    return cleaned or "part"
+
+
+def unique_name(name: str, taken) -> str:
+    """``name``, or ``name_2``, ``name_3``... whichever is first not in ``taken``."""
+    if name not in taken:
+        return name
+    n = 2
+    while f"{name}_{n}" in taken:
+        n += 1
+    return f"{name}_{n}"
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _read_instances(path: Path, ext: str) -> list[tuple[str, "trimesh.Trimesh"]]:
+    """(name, mesh with world transform applied) for every triangle mesh instance in the file."""
+    import trimesh
+
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise SourceError(f"cannot read mesh: {exc.strerror}", field="path") from None
+    if size == 0:
+        raise SourceError("cannot read mesh: the file is empty", field="path", hint="re-export the mesh")
+    kwargs: dict = {}
+    if ext == "obj":
+        kwargs = _obj_options(path)
+    elif ext == "gltf":
+        _check_gltf_json(path)
+    try:
+        # process=False: _clean does the cleaning, and reports NaN vertices instead of dropping them.
+        loaded = trimesh.load(str(path), file_type=ext, force=None, process=False, **kwargs)
+        instances = _instances(loaded, path.stem)
+    except SourceError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any loader failure is a bad file, never a traceback
+        raise SourceError(f"cannot read mesh: {_short_reason(exc)}", field="path",
+                          hint=f"check that the file is a valid .{ext} file, e.g. in a mesh viewer") from None
+    if not instances and _has_no_geometry(loaded):
+        raise SourceError(f"cannot read mesh: no geometry found (is this really a .{ext} file?)", field="path",
+                          hint="re-export the mesh")
+    return instances
+
+
+def _obj_options(path: Path) -> dict:
+    """OBJ loader options: one mesh per object/group, or per material when the file has neither."""
+    try:
+        has_split = _OBJ_SPLIT_DIRECTIVE.search(path.read_bytes()) is not None
+    except OSError as exc:
+        raise SourceError(f"cannot read mesh: {exc.strerror}", field="path") from None
+    if has_split:
+        return {"split_objects": True, "split_groups": True, "group_material": False}
+    return {"group_material": True}
+
+
+def _check_gltf_json(path: Path) -> None:
+    # trimesh reports a non-JSON .gltf as a missing resource; say what is really wrong.
+    try:
+        json.loads(path.read_bytes())
+    except (ValueError, UnicodeDecodeError):
+        raise SourceError("cannot read mesh: not a glTF JSON file", field="path",
+                          hint="a .gltf file is JSON text; for a binary file use the .glb extension") from None
+
+
+def _instances(loaded, stem: str) -> list[tuple[str, "trimesh.Trimesh"]]:
+    import trimesh
+
+    if isinstance(loaded, trimesh.Trimesh):
+        return [(stem, loaded)] if len(loaded.faces) else []
+    if not isinstance(loaded, trimesh.Scene):
+        return []  # point cloud, path...: no faces
+    out = []
+    for node in loaded.graph.nodes_geometry:
+        transform, geom_name = loaded.graph[node]
+        geometry = loaded.geometry.get(geom_name)
+        if not isinstance(geometry, trimesh.Trimesh) or len(geometry.faces) == 0:
+            continue
+        mesh = trimesh.Trimesh(vertices=np.asarray(geometry.vertices, dtype=np.float64),
+                               faces=np.asarray(geometry.faces), process=False)
+        mesh.apply_transform(np.asarray(transform, dtype=np.float64))
+        out.append((str(node), mesh))
+    return out
+
+
+def _has_no_geometry(loaded) -> bool:
+    import trimesh
+
+    if isinstance(loaded, trimesh.Scene):
+        return len(loaded.geometry) == 0
+    return len(getattr(loaded, "vertices", ())) == 0
+
+
+def _short_reason(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    text = text[:160]
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+# --------------------------------------------------------------------------- cleaning
+
+
+def _concatenate(meshes: list["trimesh.Trimesh"]) -> "trimesh.Trimesh":
+    import trimesh
+
+    if len(meshes) == 1:
+        return meshes[0]
+    offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
+    vertices = np.concatenate([np.asarray(m.vertices, dtype=np.float64) for m in meshes])
+    faces = np.concatenate([np.asarray(m.faces) + o for m, o in zip(meshes, offsets)])
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+
+
+def _clean(mesh: "trimesh.Trimesh", name: str) -> "trimesh.Trimesh":
+    """Positions and faces only, finite, duplicate vertices merged, degenerate faces dropped."""
+    import trimesh
+
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
+        raise SourceError(f"part '{name}': a face refers to a vertex that does not exist", field="path",
+                          hint="the file is corrupt; re-export the mesh")
+    if not np.all(np.isfinite(vertices[faces])):
+        raise SourceError(f"part '{name}' has vertices that are NaN or infinite", field="path",
+                          hint="the file is corrupt; re-export the mesh")
+    try:
+        # validate=True merges vertices and drops degenerate/duplicate faces.
+        cleaned = trimesh.Trimesh(vertices=vertices, faces=faces, process=True, validate=True)
+    except Exception as exc:  # noqa: BLE001 - trimesh internals on odd data
+        raise SourceError(f"cannot read mesh: part '{name}': {_short_reason(exc)}", field="path") from None
+    if len(cleaned.faces) == 0:
+        raise SourceError(f"mesh has no faces: every face of part '{name}' is degenerate", field="path",
+                          hint="check the file in a mesh viewer")
+    return cleaned
