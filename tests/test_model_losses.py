@@ -1,0 +1,218 @@
+"""Losses on hand-made grids with known values; stop-gradient; the D fake-mask assignment fix."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from model.config import DownLoss, ModelConfig
+from model.losses import (
+    discriminator_loss,
+    discriminator_loss_levels,
+    down_loss,
+    generator_adversarial_loss,
+    generator_gan_loss,
+    reconstruction_loss,
+    structure_losses,
+    up_loss,
+)
+from model.masks import DOutputMasks, StyledCoarse, align_to_d_output
+from pipeline.errors import DetailizeError
+
+
+def test_reconstruction_constant_error_gives_beta_e_squared_per_level():
+    outs = [torch.full((1, 1, 2, 2, 2), 0.5), torch.full((1, 1, 4, 4, 4), 0.5)]
+    targets = [o - 0.2 for o in outs]
+    loss = reconstruction_loss(outs, targets, beta=10.0)
+    assert loss["level0"].item() == pytest.approx(0.04)
+    assert loss["total"].item() == pytest.approx(10 * 0.04 * 2)
+    with pytest.raises(DetailizeError):
+        reconstruction_loss(outs, targets[:1])
+
+
+def _masks(n_styles=2, shape=(2, 2, 2)):
+    style = torch.zeros(n_styles, *shape)
+    style[1, 0] = 1  # style 1 on the x = 0 half (4 voxels)
+    glob = torch.zeros(1, *shape)
+    glob[0, 0] = 1
+    return style, glob
+
+
+def test_generator_gan_loss_known_values():
+    style, glob = _masks()
+    perfect = torch.ones(1, 3, 2, 2, 2)
+    assert generator_gan_loss(perfect, style, glob, 0.5)["total"].item() == 0.0
+    d = torch.full((1, 3, 2, 2, 2), 0.5)
+    d[:, :, 1] = 0.0  # outside the masks: must not count
+    terms = generator_gan_loss(d, style, glob, 0.5)
+    # per masked voxel: α·(0.5−1)² + (0.5−1)² = 0.125 + 0.25, normalised by 4 masked voxels
+    assert terms["style"].item() == pytest.approx(0.125)
+    assert terms["global"].item() == pytest.approx(0.25)
+    assert terms["total"].item() == pytest.approx(0.375)
+    alpha = torch.full((1, 2, 2, 2), 0.5)
+    alpha[0, 0, 0] = 0.1  # two joint voxels among the four
+    assert generator_gan_loss(d, style, glob, alpha)["style"].item() == pytest.approx((2 * 0.1 + 2 * 0.5) * 0.25 / 4)
+
+
+def test_generator_gan_loss_normalises_per_sample_and_handles_empty_masks():
+    style, glob = _masks()
+    d = torch.full((2, 3, 2, 2, 2), 0.5)
+    batch_style = torch.stack([style, style * 0])
+    batch_glob = torch.stack([glob, glob * 0])
+    terms = generator_gan_loss(d, batch_style, batch_glob, 0.5)
+    assert torch.isfinite(terms["total"]) and terms["total"].item() == pytest.approx(0.375 / 2)
+
+
+def test_discriminator_loss_known_values():
+    style, glob = _masks()
+    m = DOutputMasks(style, glob)
+    real_perfect = torch.ones(1, 3, 2, 2, 2)
+    fake_perfect = torch.zeros(1, 3, 2, 2, 2)
+    assert discriminator_loss(real_perfect, fake_perfect, m, m)["total"].item() == 0.0
+    d = torch.full((1, 3, 2, 2, 2), 0.25)
+    terms = discriminator_loss(d, d, m, m)
+    assert terms["real"].item() == pytest.approx(2 * 0.75**2)  # style-1 head + global head, per masked voxel
+    assert terms["fake"].item() == pytest.approx(2 * 0.25**2)
+
+
+def test_down_loss_code_hinge_zeroing_conditions():
+    coarse = torch.tensor([1.0, 1.0, 0.0, 0.0]).view(1, 1, 4, 1, 1)
+    fine = torch.zeros(1, 1, 8, 2, 2)
+    fine[:, :, 0:2] = 0.5  # on, max 0.5 ≤ 0.6: (1 − 0.5)² = 0.25
+    fine[:, :, 2:4] = 0.0
+    fine[:, :, 2, 0, 0] = 0.8  # on, max 0.8 > 0.6: zeroed
+    fine[:, :, 4:6] = 0.5  # off, max 0.5 ≥ 0.4: 0.5² = 0.25
+    fine[:, :, 6:8] = 0.3  # off, max 0.3 < 0.4: zeroed
+    loss = down_loss(fine, coarse, DownLoss.CODE_HINGE)
+    assert loss.item() == pytest.approx((0.25 + 0 + 0.25 + 0) / 4)
+
+
+def test_down_loss_paper_mse_and_up_loss_known_values():
+    coarse = torch.tensor([1.0, 0.0]).view(1, 1, 2, 1, 1)
+    fine = torch.zeros(1, 1, 4, 2, 2)
+    fine[:, :, 0, 0, 0] = 0.9  # max-pool of cell 0 = 0.9 → (0.9 − 1)²
+    fine[:, :, 3, 1, 1] = 0.2  # max-pool of cell 1 = 0.2 → 0.2²
+    assert down_loss(fine, coarse, DownLoss.PAPER_MSE).item() == pytest.approx((0.01 + 0.04) / 2)
+    # up: cell 0 upsampled is 1 everywhere in its 8 voxels: 7·1² + 0.1²; cell 1 is 0: 0.2²
+    assert up_loss(fine, coarse).item() == pytest.approx((7 + 0.01 + 0.04) / 16)
+
+
+@pytest.mark.parametrize("variant", [DownLoss.PAPER_MSE, DownLoss.CODE_HINGE])
+@pytest.mark.parametrize("stop_gradient", [True, False])
+def test_stop_gradient_blocks_the_coarse_level(variant, stop_gradient):
+    g = torch.Generator().manual_seed(0)
+    coarse = torch.rand(1, 1, 2, 2, 2, generator=g, requires_grad=True)
+    fine = torch.rand(1, 1, 4, 4, 4, generator=g, requires_grad=True)
+    (down_loss(fine, coarse, variant, stop_gradient) + up_loss(fine, coarse, stop_gradient)).backward()
+    assert fine.grad is not None and fine.grad.abs().sum() > 0
+    if stop_gradient:
+        assert coarse.grad is None
+    else:
+        assert coarse.grad is not None and coarse.grad.abs().sum() > 0
+    coarse.grad = None  # the hinge reads the coarse level only through a comparison
+    down_loss(fine, coarse, DownLoss.CODE_HINGE, stop_gradient=False).backward()
+    assert coarse.grad is None or coarse.grad.abs().sum() == 0
+
+
+def test_structure_losses_cover_every_level_including_the_input():
+    cfg = ModelConfig.lean(1, 1)
+    x = torch.ones(1, 1, 1, 1, 1)
+    outs = [torch.ones(1, 1, 2, 2, 2), torch.ones(1, 1, 4, 4, 4) * 0.5]
+    st = structure_losses(outs, x, dataclasses.replace(cfg.losses, down_loss=DownLoss.PAPER_MSE))
+    assert st["down0"].item() == 0 and st["up0"].item() == 0
+    assert st["down1"].item() == pytest.approx(0.25) and st["up1"].item() == pytest.approx(0.25)
+    assert st["total"].item() == pytest.approx(10 * 0.25 + 10 * 0.25)
+
+
+# ----------------------------------------------------------------------------- all levels
+
+
+def _two_part_content():
+    occ = np.ones((4, 4, 4), bool)
+    labels = np.zeros((4, 4, 4), np.int64)
+    labels[2:] = 1
+    return occ, labels
+
+
+def _d_outputs(cfg, coarse_shape, values):
+    """Constant per-channel discriminator outputs of the right shape at every level."""
+    outs = []
+    for j, spec in enumerate(cfg.discriminators):
+        shape = tuple(spec.output_size(n * 2 ** (j + 1)) for n in coarse_shape)
+        outs.append(torch.tensor(values, dtype=torch.float32).view(1, -1, 1, 1, 1).expand(1, -1, *shape).clone())
+    return outs
+
+
+def test_discriminator_fake_masks_use_the_true_assignment_at_every_level():
+    """With the reference bug (assignment replaced by the real style after level 0) this fails at levels 1–3."""
+    cfg = ModelConfig.paper(2, 3)
+    occ, labels = _two_part_content()
+    fake = StyledCoarse(occ, labels, (0, 1))
+    real = StyledCoarse.single_style(occ, 2)
+    values = [0.1, 0.2, 0.3, 0.4]  # style heads 0, 1, 2 and global
+    d_fake = _d_outputs(cfg, occ.shape, values)
+    d_real = _d_outputs(cfg, occ.shape, [1.0, 1.0, 1.0, 1.0])
+    loss = discriminator_loss_levels(d_real, d_fake, real, fake, cfg)
+    for j, spec in enumerate(cfg.discriminators):
+        shape = tuple(d_fake[j].shape[2:])
+        n0 = align_to_d_output((labels == 0) & occ, j, spec, shape).sum().item()
+        n1 = align_to_d_output((labels == 1) & occ, j, spec, shape).sum().item()
+        assert n0 > 0 and n1 > 0
+        ng = n0 + n1
+        correct = (n0 * 0.1**2 + n1 * 0.2**2 + ng * 0.4**2) / ng
+        buggy = 0.3**2 + 0.4**2  # every fake part credited to the real style's channel
+        assert loss[f"fake{j}"].item() == pytest.approx(correct)
+        assert abs(correct - buggy) > 1e-3
+        assert loss[f"real{j}"].item() == 0.0
+    assert loss["total"].item() == pytest.approx(sum(loss[f"fake{j}"].item() for j in range(4)))
+
+
+def test_generator_adversarial_loss_combines_gan_and_structure_terms():
+    cfg = ModelConfig.paper(2, 3)
+    occ, labels = _two_part_content()
+    fake = StyledCoarse(occ, labels, (0, 1))
+    coarse = torch.ones(1, 1, 4, 4, 4)
+    outputs = [torch.ones(1, 1, *(n * 2 ** (j + 1) for n in occ.shape)) for j in range(4)]
+    perfect = _d_outputs(cfg, occ.shape, [1.0, 1.0, 1.0, 1.0])
+    loss = generator_adversarial_loss(perfect, outputs, coarse, fake, cfg)
+    assert loss["gan"].item() == 0 and loss["down"].item() == 0 and loss["total"].item() == 0
+    half = _d_outputs(cfg, occ.shape, [0.5, 0.5, 0.5, 0.5])
+    uniform = generator_adversarial_loss(half, outputs, coarse, fake, cfg)
+    assert uniform["gan0"].item() == pytest.approx(0.5 * 0.25 + 0.25)  # α_other = 0.5 everywhere
+    joint_everywhere = torch.full((4, 4, 4), 0.1)
+    adaptive = generator_adversarial_loss(half, outputs, coarse, [fake], cfg, alpha_coarse=[joint_everywhere])
+    assert adaptive["gan3"].item() == pytest.approx(0.1 * 0.25 + 0.25)
+
+
+def test_one_adversarial_step_end_to_end_on_a_tiny_lean_model():
+    """Generator → discriminators → masked losses → gradients, as the training loop will chain them."""
+    from model.masks import alpha_map, coarse_occupancy, coarse_part_labels, joint_mask
+    from model.networks import Generator, build_discriminators
+
+    torch.manual_seed(0)
+    cfg = ModelConfig.lean(2, 3).scaled(0.125)
+    gen, discs = Generator(cfg), build_discriminators(cfg)
+    fine = np.full((64, 64, 64), -1)  # 4³ coarse cells at factor 16
+    fine[8:56, 4:32, 8:56] = 0
+    fine[8:56, 32:60, 20:44] = 1
+    labels = coarse_part_labels(fine, 16, n_parts=2)
+    occ = coarse_occupancy(fine != -1, 16)
+    fake = StyledCoarse(occ, labels, (0, 2))
+    style = np.asarray(fake.assignment)[labels]
+    inputs = gen.make_inputs(torch.as_tensor(occ)[None], torch.as_tensor(labels)[None].long(), torch.as_tensor(style)[None])
+    outputs = gen(*inputs)
+    d_fake = [d(o) for d, o in zip(discs, outputs)]
+    alpha = alpha_map(joint_mask(fine, 16, 2))
+    loss = generator_adversarial_loss(d_fake, outputs, inputs[0], fake, cfg, alpha_coarse=alpha)
+    assert torch.isfinite(loss["total"]) and loss["gan"] > 0
+    loss["total"].backward()
+    assert gen.style_codes.grad[:, 0].abs().sum() > 0 and gen.style_codes.grad[:, 2].abs().sum() > 0
+    assert gen.style_codes.grad[:, 1].abs().sum() == 0
+    d_real = [d(o.detach()) for d, o in zip(discs, outputs)]  # stand-in real shape: the same grids
+    d_loss = discriminator_loss_levels(d_real, [d(o.detach()) for d, o in zip(discs, outputs)],
+                                       StyledCoarse.single_style(fake.occupancy, 1), fake, cfg)
+    d_loss["total"].backward()
+    assert all(p.grad is not None for p in discs.parameters())
