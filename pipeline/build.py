@@ -145,7 +145,7 @@ def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progr
 def _build(asset: Asset, loaded: LoadedRecipe, out_dir: Path, progress: Progress, report: AssetReport,
            where: str, detailizer_override: str | None) -> None:
     from pipeline.detailize import get_detailizer
-    from pipeline.export import export_asset
+    from pipeline.export import apply_pivot, export_asset
     from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
     from pipeline.regions import apply_regions
     from pipeline.voxelize import voxelize
@@ -193,7 +193,8 @@ def _build(asset: Asset, loaded: LoadedRecipe, out_dir: Path, progress: Progress
 
     with _timed(report, "export", progress):
         written, pivot_offset = export_asset(mesh, out_dir, asset.name, export.formats, export.pivot,
-                                             preview_size_px=export.preview_size_px if export.preview else None)
+                                             preview_size_px=export.preview_size_px if export.preview else None,
+                                             glb_material=export.glb_material)
 
     report.outputs = {
         kind: {"path": path.name, "sha256": sha256_file(path), "bytes": path.stat().st_size}
@@ -211,15 +212,8 @@ def _build(asset: Asset, loaded: LoadedRecipe, out_dir: Path, progress: Progress
         },
         "fine_grid_shape": list(fine.shape),
         "pivot_offset_m": [round(float(v), 9) for v in pivot_offset],
-        "mesh": mesh_stats(_moved(mesh, pivot_offset)),
+        "mesh": mesh_stats(apply_pivot(mesh, export.pivot)[0]),  # stats of the geometry as exported
     }
-
-
-def _moved(mesh, offset):
-    """The exported mesh's geometry (the pivot moved), for stats that match the files."""
-    moved = mesh.copy()
-    moved.apply_translation(offset)
-    return moved
 
 
 def build_recipe(loaded: LoadedRecipe, out_dir: Path, progress: Progress | None = None,

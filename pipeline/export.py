@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from pipeline.errors import DecollageError, ExportError
+from pipeline.mesh import mesh_stats  # noqa: F401 - part of this module's API (manifest facts)
 from pipeline.recipe import ExportFormat, Pivot
 
 if TYPE_CHECKING:
@@ -38,6 +39,8 @@ GENERATOR = "decollage"
 _GLB_MATERIAL = {
     "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.9},
 }
+
+_GL_ARRAY_BUFFER, _GL_ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 _WRITABLE_HINT = "choose another output folder (--out) or fix its permissions"
 
@@ -99,18 +102,19 @@ class AtomicWriter:
 
         Should a rename fail half-way (it practically cannot within one
         folder), the files already moved are removed too, so the asset is left
-        with none of its new files rather than a mixture.
+        with none of its new files rather than a mixture (an older file they
+        had replaced is gone as well: a clean absence, never a mixed set).
         """
         placed: list[Path] = []
-        try:
-            for temp, final in self._pending:
+        for temp, final in self._pending:
+            try:
                 os.replace(temp, final)
-                placed.append(final)
-        except OSError as exc:
-            for final in placed:
-                _remove_quietly(final)
-            self.discard()
-            raise _os_error(exc, final) from None
+            except OSError as exc:
+                for done in placed:
+                    _remove_quietly(done)
+                self.discard()
+                raise _os_error(exc, final) from None
+            placed.append(final)
         done = [final for _, final in self._pending]
         self._pending = []
         return done
@@ -206,33 +210,60 @@ def pivot_translation(bounds_m: np.ndarray, pivot: Pivot) -> np.ndarray:
 
 
 def apply_pivot(mesh: "trimesh.Trimesh", pivot: Pivot) -> tuple["trimesh.Trimesh", np.ndarray]:
-    """A translated copy of ``mesh`` and the (3,) translation in metres that was applied."""
+    """A translated copy of ``mesh`` and the (3,) translation in metres that was applied.
+
+    The copy shares faces, carries the vertex normals (a translation does not
+    change them) and the vertex or face colours; it has no metadata, so nothing
+    from the caller leaks into the files. Built from arrays because
+    ``Trimesh.copy`` deep-copies and re-hashes everything (~10× slower here).
+    """
+    import trimesh
+
     shift = pivot_translation(mesh.bounds, pivot)
-    moved = mesh.copy()
-    if np.any(shift != 0.0):
-        moved.apply_translation(shift)
+    kind = getattr(mesh.visual, "kind", None)
+    moved = trimesh.Trimesh(
+        vertices=np.asarray(mesh.vertices, dtype=np.float64) + shift,
+        faces=np.asarray(mesh.faces),
+        vertex_normals=np.asarray(mesh.vertex_normals),
+        vertex_colors=np.asarray(mesh.visual.vertex_colors) if kind == "vertex" else None,
+        face_colors=np.asarray(mesh.visual.face_colors) if kind == "face" else None,
+        process=False,
+        validate=False,
+    )
     return moved, shift
 
 
 # --------------------------------------------------------------------------- encoders
 
 
-def _encode_glb(mesh: "trimesh.Trimesh", stem: str) -> bytes:
+def _encode_glb(mesh: "trimesh.Trimesh", stem: str, matte_material: bool = False) -> bytes:
+    """GLB with normals and COLOR_0; ``matte_material`` adds a white non-metallic material.
+
+    Without a material, glTF's default one is fully metallic, which some
+    renderers (three.js, for one) show almost black; with one, trimesh reads the
+    colours back as a vertex attribute of a textured visual instead of as plain
+    vertex colours. So the material is a choice (``export.glb_material``).
+    """
     import trimesh
 
-    named = mesh.copy()
-    named.metadata = {}  # trimesh would copy metadata into the file as "extras"
     scene = trimesh.Scene()
-    scene.add_geometry(named, geom_name=stem, node_name=stem)
+    scene.add_geometry(mesh, geom_name=stem, node_name=stem)
 
     def finish_tree(tree: dict) -> None:
         tree["asset"]["generator"] = GENERATOR
-        tree["materials"] = [{"name": stem, **_GLB_MATERIAL}]
+        if matte_material:
+            tree["materials"] = [{"name": stem, **_GLB_MATERIAL}]
         for gltf_mesh in tree.get("meshes", []):
-            if not gltf_mesh.get("extras"):
-                gltf_mesh.pop("extras", None)
+            gltf_mesh.pop("extras", None)  # trimesh copies mesh.metadata here; keep files clean
             for primitive in gltf_mesh["primitives"]:
-                primitive["material"] = 0
+                if matte_material:
+                    primitive["material"] = 0
+                # Buffer-view targets let loaders upload straight to the GPU
+                # (the Khronos validator hints at them otherwise).
+                accessors, views = tree["accessors"], tree["bufferViews"]
+                for accessor in primitive["attributes"].values():
+                    views[accessors[accessor]["bufferView"]]["target"] = _GL_ARRAY_BUFFER
+                views[accessors[primitive["indices"]]["bufferView"]]["target"] = _GL_ELEMENT_ARRAY_BUFFER
 
     return trimesh.exchange.gltf.export_glb(scene, include_normals=True, tree_postprocessor=finish_tree)
 
@@ -269,25 +300,30 @@ ENCODERS: dict[ExportFormat, Callable[["trimesh.Trimesh", str], bytes]] = {
 }
 
 
-def export_mesh(
+def export_asset(
     mesh: "trimesh.Trimesh",
     out_dir: Path,
     stem: str,
     formats: list[ExportFormat],
     pivot: Pivot = Pivot.BOTTOM_CENTER,
-) -> dict[str, Path]:
-    """Write ``<out_dir>/<stem>.<format>`` for every format, all or nothing.
+    preview_size_px: int | None = None,
+    glb_material: bool = False,
+) -> tuple[dict[str, Path], np.ndarray]:
+    """Write all files of one asset, all or nothing: ``<stem>.<format>`` and ``<stem>.png``.
 
     Args:
         mesh: the asset in the canonical frame, metres (see mesh.py).
         out_dir: created if missing.
         stem: file name without extension, also the GLB node/mesh name.
-        formats: formats to write, in order.
-        pivot: where the exported origin sits; the translation applied is
-            ``pivot_translation(mesh.bounds, pivot)`` (record it in the manifest).
+        formats: mesh formats to write, in order.
+        pivot: where the exported origin sits.
+        preview_size_px: also write a preview PNG of this size (preview.py); None = no preview.
+        glb_material: give the GLB a white matte material (see ``_encode_glb``).
 
     Returns:
-        format value (e.g. ``"glb"``) → final path, in the order of ``formats``.
+        (kind → final path, with kinds ``"glb"``, ``"obj"``, ``"stl"``, ``"ply"``,
+        ``"preview"`` in writing order; the (3,) pivot translation in metres that
+        was applied to the mesh, for the manifest).
 
     Raises:
         ExportError: the folder is not writable, or encoding/writing any file failed;
@@ -297,30 +333,46 @@ def export_mesh(
         raise ValueError(f"stem must be a plain, visible file name, got {stem!r}")
     out_dir = Path(out_dir)
     ensure_writable_dir(out_dir)
-    moved, _shift = apply_pivot(mesh, pivot)
+    moved, shift = apply_pivot(mesh, pivot)
+    def encoder(fmt: ExportFormat) -> Callable[[], bytes]:
+        if fmt == ExportFormat.GLB and glb_material:
+            return lambda: _encode_glb(moved, stem, matte_material=True)
+        return lambda: ENCODERS[fmt](moved, stem)
+
+    jobs: list[tuple[str, str, Callable[[], bytes]]] = [
+        (fmt.value, fmt.value, encoder(fmt)) for fmt in (ExportFormat(f) for f in formats)
+    ]
+    if preview_size_px is not None:
+        from pipeline.preview import preview_png
+
+        jobs.append(("preview", "png", lambda: preview_png(moved, preview_size_px)))
     written: dict[str, Path] = {}
     with AtomicWriter(out_dir) as writer:
-        for fmt in (ExportFormat(f) for f in formats):
-            path = out_dir / f"{stem}.{fmt.value}"
+        for kind, suffix, encode in jobs:
+            path = out_dir / f"{stem}.{suffix}"
             try:
-                data = ENCODERS[fmt](moved, stem)
+                data = encode()
             except DecollageError:
                 raise
             except Exception as exc:  # a library failure while encoding: report it as ours
-                raise ExportError(f"could not encode {fmt.value.upper()}: {exc}", file=path,
+                raise ExportError(f"could not encode {suffix.upper()}: {exc}", file=path,
                                   hint="this is likely a bug; please report it with the recipe") from exc
             writer.add(path, data)
-            written[fmt.value] = path
+            written[kind] = path
+    return written, shift
+
+
+def export_mesh(
+    mesh: "trimesh.Trimesh",
+    out_dir: Path,
+    stem: str,
+    formats: list[ExportFormat],
+    pivot: Pivot = Pivot.BOTTOM_CENTER,
+) -> dict[str, Path]:
+    """Mesh files only (no preview): ``export_asset`` without the translation.
+
+    Returns format value (e.g. ``"glb"``) → final path. The translation applied is
+    ``pivot_translation(mesh.bounds, pivot)``.
+    """
+    written, _shift = export_asset(mesh, out_dir, stem, formats, pivot)
     return written
-
-
-def mesh_stats(mesh: "trimesh.Trimesh") -> dict:
-    """Plain-JSON facts about a mesh for the manifest (lengths in metres)."""
-    lo, hi = np.asarray(mesh.bounds, dtype=np.float64)
-    return {
-        "triangles": int(len(mesh.faces)),
-        "vertices": int(len(mesh.vertices)),
-        "bbox_min_m": [float(v) for v in lo],
-        "bbox_max_m": [float(v) for v in hi],
-        "watertight": bool(mesh.is_watertight),
-    }

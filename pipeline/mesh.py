@@ -115,7 +115,7 @@ def mesh_fine_grid(fine: FineGrid, settings: MeshSettings | None = None, iso: fl
         raise MeshingError("meshing produced no triangles", hint="the detailed shape is too small or too thin")
     # Guard against a change of scikit-image's winding convention: the volume of
     # a closed, outward-facing mesh is positive.
-    if mesh.volume < 0:
+    if signed_volume(mesh.vertices, mesh.faces) < 0:
         mesh.invert()
 
     if settings.vertex_colors:
@@ -126,7 +126,8 @@ def mesh_fine_grid(fine: FineGrid, settings: MeshSettings | None = None, iso: fl
 def _crop_padded(occupancy: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarray]:
     """Crop to the inside voxels' bbox (+1 margin) and pad with one voxel of zeros.
 
-    Returns the padded float32 crop and (3,) int start of the crop in grid indices.
+    Returns the padded float32 crop and the (3,) grid index of the crop's first
+    voxel (float64 holding whole numbers, ready to add to vertex indices).
     """
     # Max-projections are one cheap pass each and, unlike a comparison, carry a
     # NaN/inf anywhere in the field through to the check below.
@@ -176,13 +177,51 @@ def _decimate(verts: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.nda
             # bound; one more round from the smaller mesh nearly always finishes.
             out_v, out_f = fast_simplification.simplify(out_v, out_f.astype(np.int32), target_count=target)
     except (ValueError, RuntimeError) as exc:
-        raise MeshingError(f"decimation failed: {exc}", hint="set export.max_triangles: null to skip it") from None
+        raise MeshingError(f"decimation failed: {exc}", field="export.max_triangles",
+                           hint="set export.max_triangles: null to skip it") from None
+    out_f = drop_coincident_faces(np.asarray(out_f, dtype=np.int64))
     if len(out_f) > target:
         raise MeshingError(
             f"could not decimate below {len(out_f)} triangles (max_triangles is {target})",
-            hint="raise export.max_triangles or set it to null",
+            field="export.max_triangles", hint="raise export.max_triangles or set it to null",
         )
-    return np.asarray(out_v, dtype=np.float64), np.asarray(out_f, dtype=np.int64)
+    if len(out_f) == 0:
+        raise MeshingError(f"decimation to {target} triangles left nothing", field="export.max_triangles",
+                           hint="raise export.max_triangles")
+    return np.asarray(out_v, dtype=np.float64), out_f
+
+
+def drop_coincident_faces(faces: np.ndarray) -> np.ndarray:
+    """(F', 3) faces without degenerate faces and without faces that share all three vertices.
+
+    Strong decimation occasionally folds a thin spot into two back-to-back
+    triangles on the same three vertices (a zero-volume fin); their edges are
+    then used four times and the mesh is no longer watertight. Removing every
+    copy of such a triangle restores a closed 2-manifold.
+    """
+    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
+    if len(faces) == 0:
+        return faces
+    key = np.sort(faces, axis=1)
+    if int(key[:, 2].max()) < (1 << 21):
+        # One int64 per triangle: a 1-D unique is several times faster than axis=0.
+        key = (key[:, 0] << 42) | (key[:, 1] << 21) | key[:, 2]
+        _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    else:
+        _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return faces[counts[inverse.ravel()] == 1]
+
+
+def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Signed volume (units³) of a closed triangle mesh; positive when faces wind outward.
+
+    Sum of the signed tetrahedra (origin, a, b, c); much cheaper than trimesh's
+    full mass properties, which compute inertia as well.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    return float(np.einsum("ij,ij->", a, np.cross(b, c)) / 6.0)
 
 
 def vertex_style_colors(fine: FineGrid, mesh: "trimesh.Trimesh") -> np.ndarray:
@@ -200,3 +239,18 @@ def vertex_style_colors(fine: FineGrid, mesh: "trimesh.Trimesh") -> np.ndarray:
     neutral = len(fine.style_names)
     valid = (styles >= 0) & (styles < neutral)
     return lut[np.where(valid, styles, neutral)]
+
+
+def mesh_stats(mesh: "trimesh.Trimesh") -> dict:
+    """Plain-JSON facts about a mesh for the manifest (lengths in metres).
+
+    Pass the mesh as exported (pivot applied) so that the box matches the files.
+    """
+    lo, hi = np.asarray(mesh.bounds, dtype=np.float64)
+    return {
+        "triangles": int(len(mesh.faces)),
+        "vertices": int(len(mesh.vertices)),
+        "bbox_min_m": [float(v) for v in lo],
+        "bbox_max_m": [float(v) for v in hi],
+        "watertight": bool(mesh.is_watertight),
+    }

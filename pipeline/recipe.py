@@ -363,6 +363,8 @@ class ExportSettings(_Strict):
     max_triangles: Optional[int] = Field(150_000, ge=4, description="Decimate above this; null = never.")
     pivot: Pivot = Pivot.BOTTOM_CENTER
     vertex_colors: bool = True
+    glb_material: bool = Field(False, description="Give GLBs a white matte material, for viewers whose default "
+                               "glTF material (fully metallic) shows vertex colours too dark.")
 
     @field_validator("formats")
     @classmethod

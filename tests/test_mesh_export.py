@@ -1,0 +1,392 @@
+"""Meshing (pipeline/mesh.py), palette and export (pipeline/export.py).
+
+Fixtures are small voxel fields made in code; known answers come from the
+analytic sphere / box they were made from.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import struct
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+from scipy import ndimage
+
+from pipeline import export as export_mod
+from pipeline.errors import ExportError, MeshingError
+from pipeline.export import (
+    apply_pivot,
+    ensure_writable_dir,
+    export_asset,
+    export_mesh,
+    mesh_stats,
+    pivot_translation,
+    write_bytes_atomic,
+)
+from pipeline.grid import FineGrid
+from pipeline.mesh import MeshSettings, drop_coincident_faces, mesh_fine_grid, signed_volume
+from pipeline.palette import NEUTRAL_RGBA, PALETTE, palette_rgba, style_color
+from pipeline.recipe import ExportFormat, ExportSettings, Pivot
+
+VOXEL = 0.01
+ORIGIN = (-0.3, 0.1, 0.2)
+N = 48
+RADIUS = 0.16
+# On a voxel centre (x), a voxel corner (z) and a voxel centre (y): the voxelized
+# sphere is then mirror-symmetric about this point, so its mesh's bbox centre must
+# land on it exactly, and a half-voxel offset bug would show as 0.5 voxel.
+CENTRE = np.array(ORIGIN) + np.array([24.5, 23.5, 24.0]) * VOXEL
+
+
+def voxel_centres(shape: tuple[int, int, int], origin=ORIGIN, voxel=VOXEL) -> np.ndarray:
+    """(X, Y, Z, 3) world position of every voxel centre."""
+    idx = np.indices(shape, dtype=np.float64).transpose(1, 2, 3, 0)
+    return np.asarray(origin) + (idx + 0.5) * voxel
+
+
+def smoothed(binary: np.ndarray, sigma: float = 1.0) -> np.ndarray:
+    return ndimage.gaussian_filter(binary.astype(np.float32), sigma).astype(np.float32)
+
+
+def fine_grid(occupancy: np.ndarray, style: np.ndarray | None = None, names=("stone",), origin=ORIGIN) -> FineGrid:
+    if style is None:
+        style = np.zeros(occupancy.shape, np.int16)
+    return FineGrid(occupancy, style.astype(np.int16), tuple(names), VOXEL, origin)
+
+
+@pytest.fixture(scope="module")
+def sphere_grid() -> FineGrid:
+    inside = np.linalg.norm(voxel_centres((N, N, N)) - CENTRE, axis=-1) <= RADIUS
+    return fine_grid(smoothed(inside))
+
+
+@pytest.fixture(scope="module")
+def sphere_mesh(sphere_grid) -> trimesh.Trimesh:
+    return mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=None))
+
+
+# --------------------------------------------------------------------------- palette
+
+
+def test_palette_is_fixed_distinct_and_indexed():
+    assert style_color("brick", 0) == (*PALETTE[0][1], 255)
+    assert style_color("anything", 0) == style_color("other", 0)  # colour depends on index only
+    colours = {style_color("s", i) for i in range(len(PALETTE))}
+    assert len(colours) == len(PALETTE) >= 12
+    rgb = np.array([c[:3] for c in colours], dtype=float)
+    gaps = np.linalg.norm(rgb[:, None] - rgb[None], axis=-1) + np.eye(len(rgb)) * 1e9
+    assert gaps.min() > 40  # clearly distinguishable
+    assert style_color("s", len(PALETTE)) == style_color("s", 0)  # wraps around
+    assert style_color("s", -1) == NEUTRAL_RGBA
+    lut = palette_rgba(("a", "b"))
+    assert lut.shape == (3, 4) and lut.dtype == np.uint8 and tuple(lut[2]) == NEUTRAL_RGBA
+
+
+# --------------------------------------------------------------------------- meshing
+
+
+def test_sphere_is_closed_outward_and_in_the_right_place(sphere_mesh):
+    mesh = sphere_mesh
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    analytic = 4.0 / 3.0 * np.pi * RADIUS**3
+    assert mesh.volume > 0
+    assert mesh.volume == pytest.approx(analytic, rel=0.05)
+    expected = np.stack([CENTRE - RADIUS, CENTRE + RADIUS])
+    assert np.abs(mesh.bounds - expected).max() < VOXEL
+    # The no-half-voxel-offset rule, precisely.
+    assert np.abs(mesh.bounds.mean(axis=0) - CENTRE).max() < 0.1 * VOXEL
+    assert signed_volume(mesh.vertices, mesh.faces) == pytest.approx(mesh.volume)
+
+
+def test_crop_offset_matches_meshing_the_whole_grid(sphere_grid, sphere_mesh):
+    # The same field inside a larger grid, shifted by (10, 5, 20) voxels with the
+    # origin moved back by as much: the surface must be the same in metres.
+    shift = np.array([10, 5, 20])
+    big = np.zeros(tuple(np.array(sphere_grid.shape) + shift + 7), np.float32)
+    big[shift[0]:shift[0] + N, shift[1]:shift[1] + N, shift[2]:shift[2] + N] = sphere_grid.occupancy
+    origin = tuple(np.asarray(ORIGIN) - shift * VOXEL)
+    mesh = mesh_fine_grid(fine_grid(big, origin=origin), MeshSettings(max_triangles=None))
+    assert len(mesh.faces) == len(sphere_mesh.faces)
+    np.testing.assert_allclose(mesh.bounds, sphere_mesh.bounds, atol=1e-9)
+
+
+def test_shape_touching_the_grid_border_is_closed():
+    occ = np.zeros((20, 16, 12), np.float32)
+    occ[:8, :6, :] = 1.0  # touches x = 0, y = 0 and both z faces
+    mesh = mesh_fine_grid(fine_grid(occ), MeshSettings(max_triangles=None))
+    assert mesh.is_watertight and mesh.volume > 0
+    # Binary field, iso 0.4: the surface lies 0.1 voxel beyond the outer voxel
+    # boundary (interpolating 1 → 0 between voxel centres).
+    np.testing.assert_allclose(mesh.bounds[0], np.asarray(ORIGIN) - 0.1 * VOXEL, atol=1e-9)
+    np.testing.assert_allclose(mesh.bounds[1], np.asarray(ORIGIN) + (np.array([8, 6, 12]) + 0.1) * VOXEL, atol=1e-9)
+
+
+def test_decimation_honours_max_triangles_and_stays_closed(sphere_grid, sphere_mesh):
+    assert len(sphere_mesh.faces) > 5000
+    for target in (3000, 800):
+        mesh = mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=target))
+        assert 0.9 * target <= len(mesh.faces) <= target
+        assert mesh.is_watertight and mesh.volume > 0
+        assert mesh.volume == pytest.approx(sphere_mesh.volume, rel=0.03)
+    # Small / thin fields under strong decimation are where fins appear (see
+    # drop_coincident_faces): sweep a range of targets on a less smooth sphere.
+    inside = np.linalg.norm(voxel_centres((N, N, N)) - CENTRE, axis=-1) <= RADIUS
+    rough = fine_grid(smoothed(inside, 0.7))
+    for target in range(700, 1400, 97):
+        assert mesh_fine_grid(rough, MeshSettings(max_triangles=target, vertex_colors=False)).is_watertight
+
+
+def test_drop_coincident_faces_removes_fins_and_degenerates():
+    faces = np.array([[0, 1, 2], [2, 1, 3], [1, 2, 3], [4, 4, 5], [5, 6, 7]])
+    np.testing.assert_array_equal(drop_coincident_faces(faces), [[0, 1, 2], [5, 6, 7]])
+
+
+def test_taubin_smoothing_keeps_shape(sphere_grid, sphere_mesh):
+    mesh = mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=None, taubin_iterations=5))
+    assert mesh.is_watertight
+    assert mesh.volume == pytest.approx(sphere_mesh.volume, rel=0.02)
+    assert not np.allclose(mesh.vertices, sphere_mesh.vertices)
+
+
+def test_meshing_is_deterministic(sphere_grid):
+    a = mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=2000))
+    b = mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=2000))
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    np.testing.assert_array_equal(a.faces, b.faces)
+
+
+def test_vertex_colours_follow_style_regions():
+    occ = np.zeros((24, 12, 12), np.float32)
+    occ[2:22, 2:10, 2:10] = 1.0
+    style = np.where(np.arange(24)[:, None, None] < 12, 0, 1) * np.ones((1, 12, 12))
+    mesh = mesh_fine_grid(fine_grid(smoothed(occ, 0.8), style, names=("brick", "slate")))
+    colours = np.asarray(mesh.visual.vertex_colors)
+    assert colours.shape == (len(mesh.vertices), 4) and colours.dtype == np.uint8
+    split_x = ORIGIN[0] + 12 * VOXEL
+    x = mesh.vertices[:, 0]
+    left, right = colours[x < split_x - VOXEL], colours[x > split_x + VOXEL]
+    assert len(left) > 50 and len(right) > 50
+    assert (left == style_color("brick", 0)).all()
+    assert (right == style_color("slate", 1)).all()
+    assert {tuple(c) for c in colours} == {style_color("brick", 0), style_color("slate", 1)}
+
+
+def test_invalid_style_gets_neutral_colour_and_colours_can_be_off():
+    occ = np.zeros((10, 10, 10), np.float32)
+    occ[3:7, 3:7, 3:7] = 1.0
+    grid = fine_grid(occ, np.full(occ.shape, -1, np.int16))
+    mesh = mesh_fine_grid(grid)
+    assert {tuple(c) for c in np.asarray(mesh.visual.vertex_colors)} == {NEUTRAL_RGBA}
+    plain = mesh_fine_grid(grid, MeshSettings(vertex_colors=False))
+    assert plain.visual.kind is None
+
+
+def test_empty_or_invalid_field_raises_meshing_error():
+    empty = fine_grid(np.full((8, 8, 8), 0.39, np.float32))
+    with pytest.raises(MeshingError, match="empty; nothing to mesh") as info:
+        mesh_fine_grid(empty)
+    assert info.value.hint
+    bad = np.ones((8, 8, 8), np.float32)
+    bad[1, 2, 3] = np.nan
+    with pytest.raises(MeshingError, match="NaN"):
+        mesh_fine_grid(fine_grid(bad))
+
+
+def test_mesh_settings_from_recipe_export_settings():
+    settings = MeshSettings.from_export(ExportSettings(taubin_iterations=3, max_triangles=None, vertex_colors=False))
+    assert settings == MeshSettings(taubin_iterations=3, max_triangles=None, vertex_colors=False)
+    with pytest.raises(ValueError):
+        MeshSettings(max_triangles=2)
+
+
+# --------------------------------------------------------------------------- export
+
+
+def glb_json(data: bytes) -> dict:
+    magic, version, length = struct.unpack("<4sII", data[:12])
+    assert (magic, version, length) == (b"glTF", 2, len(data))
+    chunk_length, chunk_type = struct.unpack("<I4s", data[12:20])
+    assert chunk_type == b"JSON"
+    return json.loads(data[20:20 + chunk_length])
+
+
+@pytest.fixture(scope="module")
+def coloured_mesh() -> trimesh.Trimesh:
+    occ = np.zeros((20, 14, 12), np.float32)
+    occ[3:17, 2:12, 3:9] = 1.0
+    style = np.where(np.arange(14)[None, :, None] < 7, 0, 1) * np.ones((20, 1, 12))
+    return mesh_fine_grid(fine_grid(smoothed(occ, 0.8), style, names=("brick", "slate")),
+                          MeshSettings(max_triangles=1500))
+
+
+@pytest.mark.parametrize("fmt", list(ExportFormat))
+def test_export_round_trip(tmp_path, coloured_mesh, fmt):
+    paths = export_mesh(coloured_mesh, tmp_path, "crate", [fmt], Pivot.SOURCE)
+    assert paths == {fmt.value: tmp_path / f"crate.{fmt.value}"}
+    assert sorted(os.listdir(tmp_path)) == [f"crate.{fmt.value}"]  # no temporaries, no .mtl
+    if fmt == ExportFormat.GLB:
+        scene = trimesh.load(paths["glb"], process=False)
+        assert list(scene.geometry) == ["crate"]
+        loaded = scene.geometry["crate"]
+    else:
+        # STL is a triangle soup: let trimesh merge its vertices.
+        loaded = trimesh.load(paths[fmt.value], process=fmt == ExportFormat.STL)
+    assert len(loaded.faces) == len(coloured_mesh.faces)
+    np.testing.assert_allclose(loaded.bounds, coloured_mesh.bounds, atol=1e-6)
+    expected_colours = {tuple(c) for c in np.asarray(coloured_mesh.visual.vertex_colors)}
+    assert len(expected_colours) == 2
+    if fmt == ExportFormat.GLB:
+        # No material by default: trimesh reads COLOR_0 back as plain vertex colours.
+        assert loaded.visual.kind == "vertex"
+        np.testing.assert_array_equal(loaded.visual.vertex_colors, coloured_mesh.visual.vertex_colors)
+        flat = trimesh.load(paths["glb"], force="mesh")
+        assert flat.visual.kind == "vertex" and len(flat.faces) == len(coloured_mesh.faces)
+        assert "vertex_normals" in loaded._cache.cache  # read from the file, not recomputed
+        np.testing.assert_allclose(loaded.vertex_normals, coloured_mesh.vertex_normals, atol=1e-5)
+        np.testing.assert_array_equal(loaded.faces, coloured_mesh.faces)
+    elif fmt in (ExportFormat.PLY, ExportFormat.OBJ):
+        assert loaded.visual.kind == "vertex"
+        assert {tuple(c) for c in np.asarray(loaded.visual.vertex_colors)} == expected_colours
+    else:
+        assert loaded.is_watertight  # STL has no colours; geometry must survive the vertex soup
+
+
+def test_glb_is_named_lit_deterministic(tmp_path, coloured_mesh):
+    first = export_mesh(coloured_mesh, tmp_path / "a", "crate", [ExportFormat.GLB], Pivot.BOTTOM_CENTER)["glb"]
+    second = export_mesh(coloured_mesh, tmp_path / "b", "crate", [ExportFormat.GLB], Pivot.BOTTOM_CENTER)["glb"]
+    assert first.read_bytes() == second.read_bytes()
+    tree = glb_json(first.read_bytes())
+    assert tree["meshes"][0]["name"] == "crate" and tree["nodes"][0]["name"] == "crate"
+    primitive = tree["meshes"][0]["primitives"][0]
+    assert {"POSITION", "NORMAL", "COLOR_0"} <= set(primitive["attributes"])
+    assert "material" not in primitive and "materials" not in tree
+    assert "extras" not in tree["meshes"][0]
+    scene = trimesh.load(first)
+    assert list(scene.geometry) == ["crate"]
+
+
+def test_glb_matte_material_option(tmp_path, coloured_mesh):
+    written, _ = export_asset(coloured_mesh, tmp_path, "crate", [ExportFormat.GLB], Pivot.SOURCE, glb_material=True)
+    tree = glb_json(written["glb"].read_bytes())
+    primitive = tree["meshes"][0]["primitives"][0]
+    assert tree["materials"][primitive["material"]]["pbrMetallicRoughness"]["metallicFactor"] == 0.0
+    # trimesh then keeps COLOR_0 as a vertex attribute of the textured visual
+    loaded = trimesh.load(written["glb"]).geometry["crate"]
+    np.testing.assert_array_equal(loaded.visual.vertex_attributes["color"], coloured_mesh.visual.vertex_colors)
+
+
+def test_pivots(tmp_path, coloured_mesh):
+    lo, hi = coloured_mesh.bounds
+    bottom = export_mesh(coloured_mesh, tmp_path, "b", [ExportFormat.PLY], Pivot.BOTTOM_CENTER)["ply"]
+    b_lo, b_hi = trimesh.load(bottom, process=False).bounds
+    assert b_lo[1] == pytest.approx(0.0, abs=1e-6)
+    assert (b_lo[0] + b_hi[0]) / 2 == pytest.approx(0.0, abs=1e-6)
+    assert (b_lo[2] + b_hi[2]) / 2 == pytest.approx(0.0, abs=1e-6)
+    np.testing.assert_allclose(b_hi - b_lo, hi - lo, atol=1e-6)
+    centred = export_mesh(coloured_mesh, tmp_path, "c", [ExportFormat.PLY], Pivot.CENTER)["ply"]
+    np.testing.assert_allclose(trimesh.load(centred, process=False).bounds.mean(axis=0), 0.0, atol=1e-6)
+    np.testing.assert_allclose(pivot_translation(np.array([[1.0, 2.0, 3.0], [3.0, 5.0, 7.0]]), Pivot.BOTTOM_CENTER),
+                               [-2.0, -2.0, -5.0])
+    np.testing.assert_allclose(pivot_translation(np.array([[1.0, 2.0, 3.0], [3.0, 5.0, 7.0]]), Pivot.SOURCE), 0.0)
+    moved, shift = apply_pivot(coloured_mesh, Pivot.CENTER)
+    np.testing.assert_allclose(moved.vertices, coloured_mesh.vertices + shift)
+    np.testing.assert_allclose(coloured_mesh.bounds, [lo, hi])  # the input is not modified
+
+
+def _boom(mesh, stem):
+    raise RuntimeError("encoder exploded")
+
+
+def test_failure_in_second_format_leaves_no_files(tmp_path, coloured_mesh, monkeypatch):
+    monkeypatch.setitem(export_mod.ENCODERS, ExportFormat.STL, _boom)
+    with pytest.raises(ExportError, match="could not encode STL") as info:
+        export_mesh(coloured_mesh, tmp_path, "crate", [ExportFormat.GLB, ExportFormat.STL, ExportFormat.PLY],
+                    Pivot.SOURCE)
+    assert info.value.file == str(tmp_path / "crate.stl")
+    assert os.listdir(tmp_path) == []  # not even the GLB, nor a temporary
+
+
+def test_write_failure_and_commit_failure_leave_no_files(tmp_path, coloured_mesh, monkeypatch):
+    old = tmp_path / "crate.glb"
+    old.write_bytes(b"previous export")
+    calls = {"fsync": 0, "replace": 0}
+    real_fsync, real_replace = os.fsync, os.replace
+
+    def fsync_fails_second(fd):
+        calls["fsync"] += 1
+        if calls["fsync"] == 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real_fsync(fd)
+
+    monkeypatch.setattr(export_mod.os, "fsync", fsync_fails_second)
+    with pytest.raises(ExportError, match="No space left"):
+        export_mesh(coloured_mesh, tmp_path, "crate", [ExportFormat.GLB, ExportFormat.PLY], Pivot.SOURCE)
+    assert os.listdir(tmp_path) == ["crate.glb"] and old.read_bytes() == b"previous export"
+    monkeypatch.setattr(export_mod.os, "fsync", real_fsync)
+
+    def replace_fails_second(src, dst):
+        calls["replace"] += 1
+        if calls["replace"] == 2:
+            raise OSError(errno.EIO, "Input/output error")
+        real_replace(src, dst)
+
+    monkeypatch.setattr(export_mod.os, "replace", replace_fails_second)
+    with pytest.raises(ExportError, match="Input/output error") as info:
+        export_mesh(coloured_mesh, tmp_path, "crate", [ExportFormat.STL, ExportFormat.PLY], Pivot.SOURCE)
+    assert info.value.file == str(tmp_path / "crate.ply")
+    assert os.listdir(tmp_path) == ["crate.glb"]  # the STL that was already moved is taken back
+
+
+def test_export_asset_writes_meshes_and_preview_together(tmp_path, coloured_mesh, monkeypatch):
+    written, shift = export_asset(coloured_mesh, tmp_path, "crate", [ExportFormat.GLB, ExportFormat.STL],
+                                  Pivot.BOTTOM_CENTER, preview_size_px=64)
+    assert list(written) == ["glb", "stl", "preview"]
+    assert sorted(os.listdir(tmp_path)) == ["crate.glb", "crate.png", "crate.stl"]
+    np.testing.assert_allclose(shift, pivot_translation(coloured_mesh.bounds, Pivot.BOTTOM_CENTER))
+    with Image.open(written["preview"]) as image:
+        assert image.size == (64, 64)
+
+    def broken_preview(mesh, size_px):
+        raise MemoryError("out of memory while rendering")
+
+    import pipeline.preview
+
+    monkeypatch.setattr(pipeline.preview, "preview_png", broken_preview)
+    with pytest.raises(ExportError, match="could not encode PNG"):
+        export_asset(coloured_mesh, tmp_path / "again", "crate", [ExportFormat.GLB], Pivot.SOURCE, preview_size_px=64)
+    assert os.listdir(tmp_path / "again") == []
+
+
+def test_unwritable_output_dir(tmp_path, coloured_mesh):
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("not a folder")
+    with pytest.raises(ExportError, match="not writable") as info:
+        export_mesh(coloured_mesh, blocker / "out", "crate", [ExportFormat.GLB], Pivot.SOURCE)
+    assert info.value.file == str(blocker / "out") and info.value.hint
+    with pytest.raises(ExportError, match="not writable"):
+        ensure_writable_dir(blocker)
+    nested = tmp_path / "new" / "deeper"
+    ensure_writable_dir(nested)
+    assert nested.is_dir() and os.listdir(nested) == []  # the probe file is gone
+
+
+def test_write_bytes_atomic_replaces_whole_file(tmp_path):
+    target = tmp_path / "preview.png"
+    target.write_bytes(b"old content that is longer")
+    write_bytes_atomic(target, b"new")
+    assert target.read_bytes() == b"new"
+    assert os.listdir(tmp_path) == ["preview.png"]
+
+
+def test_mesh_stats(sphere_mesh):
+    stats = mesh_stats(sphere_mesh)
+    assert stats["triangles"] == len(sphere_mesh.faces) and stats["vertices"] == len(sphere_mesh.vertices)
+    assert stats["watertight"] is True
+    np.testing.assert_allclose(stats["bbox_min_m"], CENTRE - RADIUS, atol=VOXEL)
+    np.testing.assert_allclose(stats["bbox_max_m"], CENTRE + RADIUS, atol=VOXEL)
+    json.dumps(stats)  # plain JSON types only
