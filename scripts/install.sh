@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Set up (or update) the project's virtual environment in .venv.
 #   bash scripts/install.sh            runtime only
-#   bash scripts/install.sh test       runtime + test tools
+#   bash scripts/install.sh test       runtime + test tools + the cadquery runtime (so the
+#                                      tests also prove that the optional cadquery install works)
 #   bash scripts/install.sh cadquery   the optional cadquery runtime in .venv-cadquery
 # torch is installed first and pinned, so pip takes the local CPU build
 # instead of pulling a multi-GB CUDA build; constraints.txt pins the rest.
@@ -29,3 +30,6 @@ if [ "${1:-}" = "test" ]; then extra="[test]"; fi
 quiet .venv/bin/python -m pip install --quiet -c constraints.txt -e ".${extra}"
 # pip's resolver cannot see every conflict (ecosystem.md §1.1): prove the stack imports.
 quiet .venv/bin/python -c "import build123d, trimesh, torch, skimage, fast_simplification, fontTools, shapely, pipeline.cli; print('decollage environment ready: torch', torch.__version__, '| build123d', build123d.__version__)"
+if [ "${1:-}" = "test" ] && [ ! -x .venv-cadquery/bin/python ]; then
+    bash scripts/install_cadquery.sh
+fi
