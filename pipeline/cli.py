@@ -94,7 +94,7 @@ def _summary_table(reports, out_dir: Path):
         mesh = r.info.get("mesh", {})
         if mesh:
             lo, hi = mesh["bbox_min_m"], mesh["bbox_max_m"]
-            size = " × ".join(f"{b - a:.2f}" for a, b in zip(lo, hi))
+            size = "×".join(f"{b - a:.2f}" for a, b in zip(lo, hi))
         else:
             size = ""
         table.add_row(r.name, "built" if r.status == "built" else "[red]failed[/]",

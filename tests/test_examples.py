@@ -75,3 +75,15 @@ def test_sizes_follow_the_recipes(showcase):
 def test_single_example_recipes_validate(recipe):
     result = CliRunner().invoke(app, ["validate", str(RECIPES / recipe)])
     assert result.exit_code == 0, result.stderr
+
+
+def test_rebuilds_are_byte_identical(showcase, tmp_path):
+    out, manifest = showcase
+    result = CliRunner().invoke(app, ["build", str(RECIPES / "showcase.yaml"), "-o", str(tmp_path), "--quiet",
+                                      "--only", "cottage", "--only", "mushroom"])
+    assert result.exit_code == 0, result.stderr
+    again = {a["name"]: a for a in json.loads((tmp_path / "manifest.json").read_text())["assets"]}
+    for entry in manifest["assets"]:
+        if entry["name"] in again:
+            assert entry["outputs"] == again[entry["name"]]["outputs"]  # same sha256 for GLB and PNG
+    assert set(again) == {"cottage", "mushroom"}
