@@ -162,15 +162,20 @@ def solid_occupancy(mesh: "trimesh.Trimesh", shape: tuple[int, int, int], origin
 # --------------------------------------------------------------------------- grid sizing
 
 
-def _fit_voxel_size(extent_m: np.ndarray, settings: GridSettings, fit: FitMode) -> float:
-    """Edge of one voxel in metres for a shape of ``extent_m`` (3,) metres."""
+def _fit_voxel_size(extent_m: np.ndarray, settings: GridSettings, fit: FitMode,
+                    fit_height_m: float | None = None) -> float:
+    """Edge of one voxel in metres for a shape of ``extent_m`` (3,) metres.
+
+    ``fit_height_m`` replaces the Y extent for ``fit: height`` when the source
+    names a reference height (text: the cap height).
+    """
     if fit == FitMode.VOXEL_SIZE:
         if settings.voxel_size_m is None:
             raise VoxelizeError("fit: voxel_size needs grid.voxel_size_m", field="grid",
                                 hint="set grid.voxel_size_m or use fit: longest")
         return float(settings.voxel_size_m)
     if fit == FitMode.HEIGHT:
-        fitted, what = float(extent_m[1]), "height (Y extent)"
+        fitted, what = float(fit_height_m or extent_m[1]), "height (Y extent)"
     else:
         fitted, what = float(extent_m.max()), "size"
     voxel = fitted / settings.resolution
@@ -184,8 +189,10 @@ def _grid_dims(extent: np.ndarray, settings: GridSettings, fit: FitMode) -> tupl
     """Grid sides for a shape of ``extent`` (3,) voxels; refuses grids over ``max_cells``."""
     dims = tuple(max(1, math.ceil(float(e) - 1e-9)) for e in extent)
     if max(dims) > settings.max_cells:
-        hint = "lower grid.resolution or use fit: longest"
-        if fit == FitMode.VOXEL_SIZE:
+        hint = "lower grid.resolution, use fit: longest, or raise grid.max_cells"
+        if fit == FitMode.HEIGHT:
+            hint = "lower grid.resolution or raise grid.max_cells (long text: split it over lines with '\\n')"
+        elif fit == FitMode.VOXEL_SIZE:
             hint += ", or raise grid.voxel_size_m"
         raise VoxelizeError(
             f"the grid would be {dims[0]}×{dims[1]}×{dims[2]} voxels, more than grid.max_cells = "
@@ -203,7 +210,7 @@ def _voxelize_meshes(source: PartMeshes, settings: GridSettings, fit: FitMode,
     lo, hi = source.bounds_m()
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
         raise VoxelizeError("the source's coordinates are not finite", field="grid", hint="check the source")
-    voxel = _fit_voxel_size(hi - lo, settings, fit)
+    voxel = _fit_voxel_size(hi - lo, settings, fit, source.fit_height_m)
     dims = _grid_dims((hi - lo) / voxel, settings, fit)
     origin = (lo + hi) / 2 - np.asarray(dims) * voxel / 2
     if supersample is None:

@@ -26,11 +26,16 @@ class PartMeshes:
             order is the part order; names are unique.
         warnings: human-readable notes for the manifest (e.g. "mesh is not watertight").
         input_files: files the parts were made from (hashed into the manifest).
+        fit_height_m: the height that ``fit: height`` maps onto ``grid.resolution``
+            voxels, when it is not simply the bounding box's Y extent (text: the
+            font's cap height, so every line's capitals get the same voxels whatever
+            accents, descenders or line count the string has). None = Y extent.
     """
 
     parts: dict[str, "trimesh.Trimesh"]
     warnings: list[str] = field(default_factory=list)
     input_files: list[Path] = field(default_factory=list)
+    fit_height_m: float | None = None
 
     def bounds_m(self) -> np.ndarray:
         """(2, 3) min/max over all parts, metres."""

@@ -36,6 +36,10 @@ means the bundled DejaVu Sans Bold. There is never a silent fallback to another
 font. A TrueType/OpenType *collection* (``.ttc``/``.otc``) is accepted, its
 first font is used and a warning says so (the recipe has no field to pick another).
 
+Grid fit: the parts carry ``fit_height_m`` = the font's cap height, so with
+``fit: height`` (the default for text) capitals get ``grid.resolution`` voxels of
+height on every line, whatever accents, descenders or line count the text has.
+
 Part names: ``NN`` is the index among visible glyphs, formatted ``{:02d}`` (so it
 stays the same when the text grows past 100 glyphs); ``c`` is the character when it
 is an ASCII letter or digit, else ``u`` + its upper-case hex code point (4+ digits).
@@ -188,6 +192,7 @@ class _Font:
             self.glyph_set = font.getGlyphSet()
             self.metrics: dict[str, tuple[int, int]] = dict(font["hmtx"].metrics)
             self.kerning = _legacy_kerning(font)
+            self.cap_height = self._cap_height(font)
         except OSError as exc:
             raise SourceError(f"{_NOT_A_FONT}: cannot read {path} ({exc.strerror or exc})",
                               field="font", hint=_FONT_HINT) from None
@@ -197,6 +202,18 @@ class _Font:
         if is_collection:
             warnings.append(f"font {path.name} is a collection; its first font was used")
         self._font = font
+
+    def _cap_height(self, font) -> float:
+        """Height of capitals in font units: OS/2 sCapHeight, else the 'H' outline's top, else 0.7 em."""
+        os2 = font["OS/2"] if "OS/2" in font else None
+        if os2 is not None and getattr(os2, "version", 0) >= 2 and getattr(os2, "sCapHeight", 0) > 0:
+            return float(os2.sCapHeight)
+        glyph = self.cmap.get(ord("H"))
+        if glyph is not None:
+            rings = self.rings(glyph)
+            if rings:
+                return float(max(r[:, 1].max() for r in rings))
+        return 0.7 * self.units_per_em
 
     def advance(self, glyph: str) -> int:
         return self.metrics.get(glyph, (0, 0))[0]
@@ -402,4 +419,4 @@ def load(spec: TextSource, base_dir: Path) -> PartMeshes:
         vertices, faces = solids[p.glyph]
         moved = (vertices + np.array([p.x, p.y, 0.0])) * scale
         parts[part_name(index, p.char)] = trimesh.Trimesh(vertices=moved, faces=faces.copy(), process=False)
-    return PartMeshes(parts=parts, warnings=warnings, input_files=[font_path])
+    return PartMeshes(parts=parts, warnings=warnings, input_files=[font_path], fit_height_m=font.cap_height * scale)

@@ -421,3 +421,19 @@ def test_text_without_visible_glyphs_is_refused():
     with pytest.raises(SourceError) as info:
         load(blank, Path("."))
     assert info.value.field == "text"
+
+
+def test_capitals_get_the_same_voxel_size_whatever_the_string():
+    """fit: height uses the cap height, so accents, descenders and extra lines do not shrink the letters."""
+    from pipeline.recipe import FitMode, GridSettings
+    from pipeline.voxelize import voxelize
+
+    grids = {}
+    for text in ("HELL", "Ünïcødé gypsy", "TWO\nLINES"):
+        parts = load(TextSource(kind="text", text=text, size_m=0.5), Path("."))
+        assert parts.fit_height_m == pytest.approx(0.5 * 1493 / 2048)  # DejaVu Sans Bold: capHeight 1493 / 2048 em
+        grids[text] = voxelize(parts, GridSettings(resolution=16), FitMode.HEIGHT)
+    sizes = {g.voxel_size_m for g in grids.values()}
+    assert len(sizes) == 1
+    assert grids["HELL"].shape[1] == 16  # (round letters overshoot the cap height a little)
+    assert grids["Ünïcødé gypsy"].shape[1] > 16 and grids["TWO\nLINES"].shape[1] > 32

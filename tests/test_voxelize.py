@@ -81,11 +81,11 @@ def test_fit_voxel_size_uses_the_given_size():
 
 def test_too_many_cells_is_refused_with_the_dims():
     with pytest.raises(VoxelizeError) as info:
-        _grid({"wide": _box((10.0, 1.0, 1.0))}, FitMode.HEIGHT)
+        _grid({"wide": _box((20.0, 1.0, 1.0))}, FitMode.HEIGHT)
     err = info.value
     assert err.field == "grid"
-    assert "160×16×16" in err.message
-    assert err.hint.startswith("lower grid.resolution or use fit: longest")
+    assert "320×16×16" in err.message and "max_cells = 256" in err.message
+    assert err.hint.startswith("lower grid.resolution or raise grid.max_cells")
 
 
 # --------------------------------------------------------------------------- parts, overlaps, open and hollow meshes
