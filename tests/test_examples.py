@@ -68,7 +68,8 @@ def test_sizes_follow_the_recipes(showcase):
     assert tower[1] == pytest.approx(3.7, abs=0.3) and tower[0] == pytest.approx(1.6, abs=0.2)
     word = size(by_name["castle_word"])  # a long word: much wider than tall
     assert word[0] > 4 * word[1]
-    assert by_name["castle_word"]["coarse_grid"]["shape"][1] == 16  # 16 voxels of letter height
+    # 16 voxels of cap height; round letters (C, S) overshoot it by up to one voxel
+    assert by_name["castle_word"]["coarse_grid"]["shape"][1] in (16, 17)
 
 
 @pytest.mark.parametrize("recipe", ["text_word.yaml", "cad_tower.yaml", "imported_mesh.yaml", "voxel_grid.yaml"])
