@@ -377,8 +377,18 @@ class ExportSettings(_Strict):
         return v
 
 
+VariantValue = Union[str, int, float, bool]
+
+
 class Asset(_Strict):
     name: str = Field(pattern=NAME_PATTERN, max_length=100)
+    variants: Optional[dict[str, list[VariantValue]]] = Field(
+        None, description="A matrix of values (key → list); the asset expands to one asset per combination, "
+                          "with ${key} replaced everywhere (see pipeline/variants.py).")
+    name_template: Optional[str] = Field(None, description="Names of the expanded assets, e.g. "
+                                         "'{asset}_{style}_{seed}'; default: {asset}_ and every key in order.")
+    variant: Optional[dict[str, VariantValue]] = Field(
+        None, description="Set by the expansion: the values this asset was made with.")
     source: SourceSpec
     grid: GridSettings = GridSettings()
     regions: list[RegionRule] = Field(min_length=1)
@@ -549,14 +559,33 @@ def parse_recipe(text: str, path: Path) -> Recipe:
         err = validation_error(exc, path)
         err.field = "defaults" + ("." + err.field if err.field != "(top level)" else "")
         raise err from None
+    origin = None
     if isinstance(defaults, dict) and isinstance(data.get("assets"), list):
+        from pipeline.variants import expand_assets
+
+        try:
+            assets, origin = expand_assets(data["assets"])
+        except RecipeError as exc:
+            raise exc.located(file=path) from None
         data = dict(data)
-        data["assets"] = [_with_defaults(a, defaults) for a in data["assets"]]
+        data["assets"] = [_with_defaults(a, defaults) for a in assets]
         as_json = json.dumps(data)
     try:
         return Recipe.model_validate_json(as_json, strict=True)
     except ValidationError as exc:
-        raise validation_error(exc, path) from None
+        raise _at_recipe_index(validation_error(exc, path), origin) from None
+
+
+def _at_recipe_index(err: RecipeError, origin: list[tuple[int, str | None]] | None) -> RecipeError:
+    """Point an error in an expanded asset back at the recipe's own asset (and name the variant)."""
+    match = re.match(r"^assets\[(\d+)\](.*)$", err.field or "")
+    if origin is None or not match or int(match.group(1)) >= len(origin):
+        return err
+    index, variant = origin[int(match.group(1))]
+    err.field = f"assets[{index}]{match.group(2)}"
+    if variant:
+        err.message += f" (in variant {variant})"
+    return err
 
 
 def _with_defaults(asset: Any, defaults: dict) -> Any:
