@@ -2,8 +2,11 @@
 
 ``check_recipe`` does every check that needs no heavy work (input files exist,
 detailizer and style names are known) so that a bad recipe fails before
-anything is written. ``build_recipe`` then builds asset by asset; a failing
-asset is reported and leaves no partial file, the others are still built, and
+anything is written. ``plan_build`` computes each asset's content key and finds
+the assets whose recorded outputs are still valid (``pipeline/cache.py``).
+``build_recipe`` builds the rest through an executor (in process, worker
+processes, or a cluster: ``pipeline/executors.py``); a failing asset is
+reported and leaves no partial file, the others are still built, and
 ``manifest.json`` describes the whole build.
 """
 
@@ -17,17 +20,19 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pipeline.cache import asset_key, remove_stale_temporaries, sha256_file, valid_record, write_record
 from pipeline.errors import DecollageError, RecipeError
-from pipeline.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset, LoadedRecipe
+from pipeline.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset, LoadedRecipe, parse_recipe
 
 
 @dataclass
 class AssetReport:
-    """What happened to one asset; becomes its manifest entry."""
+    """What happened to one asset; ``entry()`` is its manifest entry."""
 
     name: str
     index: int
     status: str = "pending"  # built | failed
+    cached: bool = False
     error: str | None = None
     warnings: list[str] = field(default_factory=list)
     timings_s: dict[str, float] = field(default_factory=dict)
@@ -35,6 +40,22 @@ class AssetReport:
     outputs: dict[str, dict] = field(default_factory=dict)
     info: dict = field(default_factory=dict)
     traceback: str | None = None
+
+    def entry(self) -> dict:
+        """The manifest entry (plain JSON); a cached asset's is the one recorded when it was built."""
+        entry = {"name": self.name, "status": self.status, "inputs": self.inputs, "outputs": self.outputs,
+                 **self.info, "warnings": self.warnings, "timings_s": self.timings_s}
+        if self.error:
+            entry["error"] = self.error
+        return entry
+
+    @classmethod
+    def from_entry(cls, index: int, entry: dict) -> "AssetReport":
+        known = {"name", "status", "inputs", "outputs", "warnings", "timings_s", "error"}
+        return cls(name=entry["name"], index=index, status=entry["status"], cached=True,
+                   error=entry.get("error"), warnings=list(entry.get("warnings", [])),
+                   timings_s=dict(entry.get("timings_s", {})), inputs=entry.get("inputs", {}),
+                   outputs=entry.get("outputs", {}), info={k: v for k, v in entry.items() if k not in known})
 
 
 class Progress:
@@ -47,16 +68,14 @@ class Progress:
     def asset_finished(self, report: AssetReport) -> None: ...
 
 
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
+@dataclass(frozen=True)
+class PlannedAsset:
+    """One asset of a build: its content key, and its recorded entry when that is still valid."""
 
-
-def _asset_field(index: int) -> str:
-    return f"assets[{index}]"
+    index: int
+    name: str
+    key: str
+    cached_entry: dict | None
 
 
 def _input_files(asset: Asset, loaded: LoadedRecipe) -> dict[str, Path]:
@@ -69,23 +88,27 @@ def _input_files(asset: Asset, loaded: LoadedRecipe) -> dict[str, Path]:
     return files
 
 
+def _detailizer_of(asset: Asset, loaded: LoadedRecipe, override: str | None) -> tuple[str, str | None]:
+    settings = asset.detailize
+    return override or settings.detailizer, settings.checkpoint and str(loaded.resolve(settings.checkpoint))
+
+
 def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -> None:
     """Static checks before building. Raises RecipeError naming file and field."""
     from pipeline.detailize import get_detailizer
 
     for i, asset in enumerate(loaded.recipe.assets):
-        where = _asset_field(i)
+        where, variant = loaded.where(i)
+        suffix = f" (in variant {variant})" if variant else ""
         for name, path in _input_files(asset, loaded).items():
             if not path.exists():
-                raise RecipeError(f"file not found: {path}", file=loaded.path, field=f"{where}.source.{name}",
+                raise RecipeError(f"file not found: {path}{suffix}", file=loaded.path, field=f"{where}.source.{name}",
                                   hint="relative paths are resolved against the recipe's folder")
             if not path.is_file():
-                raise RecipeError(f"not a file: {path}", file=loaded.path, field=f"{where}.source.{name}")
-        settings = asset.detailize
-        name = detailizer_override or settings.detailizer
+                raise RecipeError(f"not a file: {path}{suffix}", file=loaded.path, field=f"{where}.source.{name}")
+        name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
         try:
-            det = get_detailizer(name, settings.checkpoint and str(loaded.resolve(settings.checkpoint)),
-                                 settings.device)
+            det = get_detailizer(name, checkpoint, asset.detailize.device)
         except DecollageError as exc:
             raise RecipeError(exc.message, file=loaded.path, field=f"{where}.detailize.detailizer",
                               hint=exc.hint) from None
@@ -94,18 +117,41 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
                 value = getattr(rule, attr)
                 if vocab is not None and value != FROM_SOURCE and value not in vocab:
                     raise RecipeError(
-                        f"unknown {attr} {value!r} (known: {', '.join(vocab)})",
+                        f"unknown {attr} {value!r}{suffix} (known: {', '.join(vocab)})",
                         file=loaded.path, field=f"{where}.regions[{r}].{attr}",
                         hint=f"use one of the {attr}s the '{det.name}' detailizer was trained on",
                     )
 
 
-def _locate(exc: DecollageError, loaded: LoadedRecipe, where: str) -> DecollageError:
-    """Put an error raised deep inside a stage at its place in the recipe."""
+def plan_build(loaded: LoadedRecipe, out_dir: Path, detailizer_override: str | None = None,
+               only: Callable[[Asset], bool] | None = None, force: bool = False) -> list[PlannedAsset]:
+    """Content keys of the selected assets, and which of them are up to date in ``out_dir``."""
+    planned = []
+    for i, asset in enumerate(loaded.recipe.assets):
+        if only is not None and not only(asset):
+            continue
+        inputs = {n: sha256_file(p) for n, p in _input_files(asset, loaded).items()}
+        name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
+        key = asset_key(asset.model_dump(mode="json", by_alias=True), inputs,
+                        sha256_file(Path(checkpoint)) if checkpoint else None, name)
+        cached = None if force else valid_record(out_dir, asset.name, key)
+        planned.append(PlannedAsset(i, asset.name, key, cached))
+    return planned
+
+
+def _locate(exc: DecollageError, loaded: LoadedRecipe, index: int, sub: str = "") -> DecollageError:
+    """Put an error raised deep inside a stage at its place in the recipe file."""
+    where, variant = loaded.where(index)
     if exc.file and Path(exc.file) != loaded.path:
         exc.message = f"{exc.file}: {exc.message}"
+    if variant and "(in variant" not in exc.message:
+        exc.message += f" (in variant {variant})"
     exc.file = str(loaded.path)
-    exc.field = f"{where}.{exc.field}" if exc.field and not exc.field.startswith("assets[") else (exc.field or where)
+    prefix = where + (f".{sub}" if sub else "")
+    if exc.field and exc.field.startswith("assets["):
+        exc.field = where + exc.field[exc.field.index("]") + 1:]
+    else:
+        exc.field = f"{prefix}.{exc.field}" if exc.field else prefix
     return exc
 
 
@@ -124,13 +170,13 @@ def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progr
     """Build one asset; never raises for asset-level problems (they go into the report)."""
     asset = loaded.recipe.assets[index]
     report = AssetReport(name=asset.name, index=index)
-    where = _asset_field(index)
+    where, _ = loaded.where(index)
     try:
-        _build(asset, loaded, out_dir, progress, report, where, detailizer_override)
+        _build(asset, loaded, index, out_dir, progress, report, detailizer_override)
         report.status = "built"
     except DecollageError as exc:
         report.status = "failed"
-        report.error = _locate(exc, loaded, where).one_line()
+        report.error = _locate(exc, loaded, index).one_line()
     except MemoryError:
         report.status = "failed"
         report.error = f"{loaded.path}: {where}: ran out of memory (lower grid.resolution or max_cells)"
@@ -142,8 +188,8 @@ def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progr
     return report
 
 
-def _build(asset: Asset, loaded: LoadedRecipe, out_dir: Path, progress: Progress, report: AssetReport,
-           where: str, detailizer_override: str | None) -> None:
+def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progress,
+           report: AssetReport, detailizer_override: str | None) -> None:
     from pipeline.detailize import get_detailizer
     from pipeline.export import apply_pivot, export_asset
     from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
@@ -153,37 +199,30 @@ def _build(asset: Asset, loaded: LoadedRecipe, out_dir: Path, progress: Progress
 
     report.inputs = {
         "entry_sha256": hashlib.sha256(asset.model_dump_json(by_alias=True).encode()).hexdigest(),
-        "files": {},
+        "files": {name: {"path": str(path), "sha256": sha256_file(path)}
+                  for name, path in _input_files(asset, loaded).items()},
     }
-    for name, path in _input_files(asset, loaded).items():
-        report.inputs["files"][name] = {"path": str(path), "sha256": sha256_file(path)}
+    where, _ = loaded.where(index)
 
     with _timed(report, "source", progress):
         try:
             source = load_source(asset.source, loaded.base_dir)
         except DecollageError as exc:
-            raise _locate(exc, loaded, f"{where}.source")
+            raise _locate(exc, loaded, index, "source")
     report.warnings += source.warnings
 
     with _timed(report, "voxelize", progress):
-        try:
-            part_grid = voxelize(source, asset.grid, asset.fit)
-        except DecollageError as exc:
-            raise _locate(exc, loaded, where)
+        part_grid = voxelize(source, asset.grid, asset.fit)
     report.warnings += list(part_grid.warnings)
 
     with _timed(report, "regions", progress):
-        try:
-            grid, warnings = apply_regions(part_grid, asset.regions, field=f"{where}.regions")
-        except DecollageError as exc:
-            raise _locate(exc, loaded, where)
+        grid, warnings = apply_regions(part_grid, asset.regions, field=f"{where}.regions")
     report.warnings += warnings
 
-    settings = asset.detailize
-    checkpoint = settings.checkpoint and str(loaded.resolve(settings.checkpoint))
-    detailizer = get_detailizer(detailizer_override or settings.detailizer, checkpoint, settings.device)
+    name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
+    detailizer = get_detailizer(name, checkpoint, asset.detailize.device)
     with _timed(report, "detailize", progress):
-        fine = detailizer.detailize(grid, seed=settings.seed)
+        fine = detailizer.detailize(grid, seed=asset.detailize.seed)
 
     export = asset.export
     with _timed(report, "mesh", progress):
@@ -202,6 +241,7 @@ def _build(asset: Asset, loaded: LoadedRecipe, out_dir: Path, progress: Progress
     }
     report.info = {
         "source_kind": asset.source.kind,
+        **({"variant": asset.variant} if asset.variant else {}),
         "detailizer": detailizer.describe(),
         "coarse_grid": {
             "shape": list(grid.shape),
@@ -216,22 +256,63 @@ def _build(asset: Asset, loaded: LoadedRecipe, out_dir: Path, progress: Progress
     }
 
 
+# --------------------------------------------------------------------------- tasks run by executors
+
+_LOADED: dict[tuple[str, str], LoadedRecipe] = {}
+
+
+def build_task(recipe_text: str, recipe_path: str, index: int, key: str, out_dir: str,
+               detailizer_override: str | None = None, progress: Progress | None = None) -> AssetReport:
+    """Build one planned asset and record it; a function of plain data, so any executor can run it.
+
+    The parsed recipe is kept per process, so a worker parses each recipe once.
+    """
+    cache_key = (recipe_path, hashlib.sha256(recipe_text.encode()).hexdigest())
+    if cache_key not in _LOADED:
+        path = Path(recipe_path)
+        _LOADED[cache_key] = LoadedRecipe(parse_recipe(recipe_text, path), path, recipe_text)
+    out = Path(out_dir)
+    report = build_asset(_LOADED[cache_key], index, out, progress or Progress(), detailizer_override)
+    if report.status == "built":
+        write_record(out, report.name, key, report.entry())
+    return report
+
+
 def build_recipe(loaded: LoadedRecipe, out_dir: Path, progress: Progress | None = None,
                  detailizer_override: str | None = None,
-                 only: Callable[[Asset], bool] | None = None) -> list[AssetReport]:
-    """Check, then build every selected asset; writes ``out_dir/manifest.json`` atomically."""
+                 only: Callable[[Asset], bool] | None = None, force: bool = False,
+                 executor=None) -> list[AssetReport]:
+    """Check, plan, build what is not up to date, and write ``out_dir/manifest.json`` atomically.
+
+    Returns one report per selected asset in recipe order (``cached`` marks those
+    taken from a valid record). ``executor`` defaults to building in this process.
+    On KeyboardInterrupt the manifest of what finished is written before re-raising.
+    """
+    from pipeline.executors import LocalExecutor
     from pipeline.export import ensure_writable_dir
     from pipeline.manifest import write_manifest
 
     progress = progress or Progress()
+    executor = executor or LocalExecutor(progress)
     check_recipe(loaded, detailizer_override)
     ensure_writable_dir(out_dir)
-    selected = [i for i, a in enumerate(loaded.recipe.assets) if only is None or only(a)]
-    reports = []
-    for n, i in enumerate(selected):
-        progress.asset_started(n, len(selected), loaded.recipe.assets[i].name)
-        report = build_asset(loaded, i, out_dir, progress, detailizer_override)
+    remove_stale_temporaries(out_dir)
+    plan = plan_build(loaded, out_dir, detailizer_override, only, force)
+    reports: dict[int, AssetReport] = {}
+    for p in plan:
+        if p.cached_entry is not None:
+            reports[p.index] = AssetReport.from_entry(p.index, p.cached_entry)
+            progress.asset_finished(reports[p.index])
+    todo = [p for p in plan if p.cached_entry is None]
+    tasks = [(loaded.text, str(loaded.path), p.index, p.key, str(out_dir), detailizer_override) for p in todo]
+
+    def done(report: AssetReport) -> None:
+        reports[report.index] = report
         progress.asset_finished(report)
-        reports.append(report)
-    write_manifest(out_dir, loaded, reports)
-    return reports
+
+    try:
+        executor.run(build_task, tasks, done, names=[p.name for p in todo])
+    finally:
+        ordered = [reports[p.index] for p in plan if p.index in reports]
+        write_manifest(out_dir, loaded, ordered)
+    return ordered

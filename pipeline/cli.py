@@ -17,7 +17,7 @@ from typing import Optional
 
 import typer
 
-from pipeline.errors import DecollageError
+from pipeline.errors import DecollageError, UsageError
 
 EXIT_OK, EXIT_ASSETS_FAILED, EXIT_INVALID, EXIT_INTERNAL = 0, 1, 2, 3
 
@@ -40,17 +40,26 @@ def _fail(exc: DecollageError, code: int = EXIT_INVALID) -> None:
     raise typer.Exit(code)
 
 
+class _Stopped(Exception):
+    """--fail-fast: an asset failed; carries the reports so far."""
+
+    def __init__(self, reports) -> None:
+        super().__init__("stopped after a failure")
+        self.reports = reports
+
+
 class _ConsoleProgress:
     """Asset-level progress on stderr: a live bar on a terminal, one line per asset otherwise."""
 
-    def __init__(self, total: int, quiet: bool) -> None:
+    def __init__(self, total: int, quiet: bool, keep_going: bool = True) -> None:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         self.console = _stderr()
         self.quiet = quiet
+        self.keep_going = keep_going
         self.live = self.console.is_terminal and not quiet
-        self.started = 0.0
         self.name = ""
+        self.reports: list = []
         self.bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                             TimeElapsedColumn(), console=self.console, transient=True)
         self.task = self.bar.add_task("building", total=total)
@@ -65,23 +74,30 @@ class _ConsoleProgress:
             self.bar.stop()
 
     def asset_started(self, index: int, total: int, name: str) -> None:
-        self.name, self.started = name, time.perf_counter()
+        self.name = name
         self.bar.update(self.task, description=f"{name}: starting")
 
     def stage(self, stage: str) -> None:
         self.bar.update(self.task, description=f"{self.name}: {stage}")
 
     def asset_finished(self, report) -> None:
+        self.reports.append(report)
         self.bar.advance(self.task)
-        if self.quiet:
-            return
-        took = time.perf_counter() - self.started
-        if report.status == "built":
-            self.console.print(f"[green]built[/]  {report.name} ({took:.1f} s)")
-        else:
+        self.bar.update(self.task, description=f"{report.name}: {'cached' if report.cached else report.status}")
+        if not self.quiet:
+            if report.cached:
+                self.console.print(f"[dim]cached[/] {report.name}")
+            elif report.status == "built":
+                self.console.print(f"[green]built[/]  {report.name} ({sum(report.timings_s.values()):.1f} s)")
+            else:
+                self.console.print(f"[red]failed[/] {report.name}: {report.error}")
+            if not report.cached:
+                for w in report.warnings:
+                    self.console.print(f"  [yellow]warning:[/] {w}")
+        elif report.status == "failed":
             self.console.print(f"[red]failed[/] {report.name}: {report.error}")
-        for w in report.warnings:
-            self.console.print(f"  [yellow]warning:[/] {w}")
+        if report.status == "failed" and not self.keep_going:
+            raise _Stopped(list(self.reports))
 
 
 def _summary_table(reports, out_dir: Path):
@@ -109,40 +125,114 @@ def build(
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output folder (created if missing)."),
     only: Optional[list[str]] = typer.Option(None, "--only", help="Build only assets with these names."),
     detailizer: Optional[str] = typer.Option(None, "--detailizer", help="Override every asset's detailizer."),
+    jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="Worker processes on this machine."),
+    executor: str = typer.Option("local", "--executor", help="local, or dask (a cluster; needs --address)."),
+    address: Optional[str] = typer.Option(None, "--address", help="Cluster scheduler, e.g. tcp://host:8786."),
+    gpus_per_task: float = typer.Option(0.0, "--gpus-per-task", min=0.0,
+                                        help="GPUs a cluster task asks for (Dask resource 'GPU')."),
+    force: bool = typer.Option(False, "--force", help="Rebuild even assets whose outputs are up to date."),
+    list_only: bool = typer.Option(False, "--list", help="Show the assets (variants expanded) and stop."),
+    check: bool = typer.Option(False, "--check", help="Exit 1 if any output is stale; build nothing."),
+    json_out: bool = typer.Option(False, "--json", help="Machine-readable summary on stdout; logs on stderr."),
+    keep_going: bool = typer.Option(True, "--keep-going/--fail-fast",
+                                    help="Build the other assets after a failure (default), or stop at the first."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Only errors and the summary."),
     debug: bool = typer.Option(False, "--debug", help="Show tracebacks of internal errors."),
 ) -> None:
-    """Build every asset of a recipe into meshes, previews and a manifest."""
-    from pipeline.build import build_recipe
+    """Build every asset of a recipe into meshes, previews and a manifest (only what changed)."""
+    from pipeline.build import build_recipe, check_recipe, plan_build
+    from pipeline.executors import make_executor
     from pipeline.recipe import load_recipe
 
+    started = time.perf_counter()
     try:
         loaded = load_recipe(recipe)
-        names = {a.name for a in loaded.recipe.assets}
-        unknown = sorted(set(only or ()) - names)
+        assets = loaded.recipe.assets
+        names = [a.name for a in assets]
+        unknown = sorted(set(only or ()) - set(names))
         if unknown:
-            from pipeline.errors import UsageError
-
-            raise UsageError(f"--only names unknown assets {unknown} (assets: {sorted(names)})")
+            raise UsageError(f"--only names unknown assets {unknown} (assets: {names[:20]})")
         selected = set(only) if only else None
+        pick = (lambda a: a.name in selected) if selected else None
+        if list_only:
+            _print_list(loaded, pick, json_out)
+            return
+        if check:
+            check_recipe(loaded, detailizer)
+            plan = plan_build(loaded, out, detailizer, pick)
+            _print_check(plan, json_out)
+            raise typer.Exit(EXIT_ASSETS_FAILED if any(p.cached_entry is None for p in plan) else EXIT_OK)
         total = len(selected) if selected else len(names)
-        with _ConsoleProgress(total, quiet) as progress:
-            reports = build_recipe(loaded, out, progress, detailizer,
-                                   only=(lambda a: a.name in selected) if selected else None)
+        with _ConsoleProgress(total, quiet or json_out, keep_going) as progress:
+            runner = make_executor(executor, jobs, address, gpus_per_task, progress)
+            reports = build_recipe(loaded, out, progress, detailizer, only=pick, force=force, executor=runner)
     except DecollageError as exc:
         _fail(exc)
+    except _Stopped as stop:
+        reports = stop.reports
     if debug:
         for r in reports:
             if r.traceback:
                 _stderr().print(r.traceback, markup=False)
-    from rich.console import Console
+    wall = time.perf_counter() - started
+    if json_out:
+        sys.stdout.write(json.dumps(_json_summary(reports, recipe, out, wall), indent=2) + "\n")
+    else:
+        from rich.console import Console
 
-    Console(highlight=False).print(_summary_table(reports, out))
+        Console(highlight=False).print(_summary_table(reports, out))
+        cached = sum(r.cached for r in reports)
+        _stderr().print(f"{len(reports) - cached} built, {cached} up to date (cached), "
+                        f"{sum(r.status == 'failed' for r in reports)} failed in {wall:.1f} s")
     failed = [r for r in reports if r.status != "built"]
     if failed:
         _stderr().print(f"[red]{len(failed)} of {len(reports)} assets failed[/]; "
                         f"the others are in {out} (see manifest.json)")
         raise typer.Exit(EXIT_ASSETS_FAILED)
+
+
+def _print_list(loaded, pick, json_out: bool) -> None:
+    rows = []
+    for i, a in enumerate(loaded.recipe.assets):
+        if pick is None or pick(a):
+            where, _ = loaded.where(i)
+            rows.append({"name": a.name, "recipe_field": where, "source": a.source.kind, "variant": a.variant})
+    if json_out:
+        sys.stdout.write(json.dumps(rows, indent=2) + "\n")
+        return
+    for row in rows:
+        variant = " ".join(f"{k}={v}" for k, v in (row["variant"] or {}).items())
+        typer.echo(f"{row['name']}\t{row['source']}\t{row['recipe_field']}\t{variant}".rstrip())
+    typer.echo(f"{len(rows)} assets", err=True)
+
+
+def _print_check(plan, json_out: bool) -> None:
+    stale = [p.name for p in plan if p.cached_entry is None]
+    fresh = [p.name for p in plan if p.cached_entry is not None]
+    if json_out:
+        sys.stdout.write(json.dumps({"stale": stale, "up_to_date": fresh}, indent=2) + "\n")
+    else:
+        for name in stale:
+            typer.echo(f"stale\t{name}")
+        typer.echo(f"{len(stale)} stale, {len(fresh)} up to date", err=True)
+
+
+def _json_summary(reports, recipe: Path, out: Path, wall_s: float) -> dict:
+    return {
+        "recipe": str(recipe),
+        "out": str(out),
+        "manifest": str(out / "manifest.json"),
+        "wall_time_s": round(wall_s, 3),
+        "summary": {
+            "assets": len(reports),
+            "built": sum(r.status == "built" and not r.cached for r in reports),
+            "cached": sum(r.cached for r in reports),
+            "failed": sum(r.status == "failed" for r in reports),
+        },
+        "assets": [{"name": r.name, "status": "cached" if r.cached else r.status,
+                    "outputs": {k: str(out / v["path"]) for k, v in r.outputs.items()},
+                    **({"error": r.error} if r.error else {})} for r in reports],
+    }
 
 
 @app.command()

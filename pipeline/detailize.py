@@ -30,6 +30,7 @@ class Detailizer(Protocol):
 #: name → "module:factory". Factories take (checkpoint path or None, device) and return a Detailizer.
 REGISTRY: dict[str, str] = {
     "upsample": "model.upsample:UpsampleDetailizer",
+    "decollage": "model.infer:DecollageDetailizer",
 }
 
 _CACHE: dict[tuple, Detailizer] = {}

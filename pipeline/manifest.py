@@ -2,7 +2,9 @@
 
 Format version 1. Paths of outputs are relative to the manifest's folder.
 Axes and units are stated explicitly so that a consumer never has to guess.
-Timings are the only non-deterministic values; they live under ``timings_s``.
+Timings are the only non-deterministic values; they live under ``timings_s``,
+and an asset taken from the cache keeps the entry (timings included) recorded
+when it was built, so rebuilding unchanged inputs rewrites an identical file.
 """
 
 from __future__ import annotations
@@ -21,23 +23,9 @@ AXES = {"up": "+Y", "front": "+Z", "right": "+X", "units": "m", "convention": "g
 
 
 def manifest_dict(loaded, reports) -> dict:
-    from pipeline.build import sha256_file
+    """The manifest of a build: ``reports`` in recipe order (cached ones carry their recorded entry)."""
+    from pipeline.cache import sha256_file
 
-    assets = []
-    for r in reports:
-        entry = {
-            "name": r.name,
-            "status": r.status,
-            "recipe_index": r.index,
-            "inputs": r.inputs,
-            "outputs": r.outputs,
-            **r.info,
-            "warnings": r.warnings,
-            "timings_s": r.timings_s,
-        }
-        if r.error:
-            entry["error"] = r.error
-        assets.append(entry)
     return {
         "format": MANIFEST_FORMAT,
         "tool": {"name": "decollage", "version": __version__, "python": platform.python_version()},
@@ -49,7 +37,7 @@ def manifest_dict(loaded, reports) -> dict:
             "built": sum(r.status == "built" for r in reports),
             "failed": sum(r.status == "failed" for r in reports),
         },
-        "assets": assets,
+        "assets": [r.entry() for r in reports],
     }
 
 

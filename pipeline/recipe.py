@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
 from pipeline.errors import RecipeError
 
@@ -410,6 +410,9 @@ class Defaults(_Strict):
 
 
 class Recipe(_Strict):
+    #: Per (expanded) asset: (index of the asset in the recipe file, variant name or None).
+    _origin: list[tuple[int, Optional[str]]] = PrivateAttr(default_factory=list)
+
     version: Literal[1] = Field(description="Schema version; this tool reads version 1.")
     defaults: Defaults = Defaults()
     assets: list[Asset] = Field(min_length=1)
@@ -435,6 +438,11 @@ class LoadedRecipe:
         self.path = path
         self.base_dir = path.parent
         self.text = text
+
+    def where(self, index: int) -> tuple[str, str | None]:
+        """(field path of expanded asset ``index`` in the recipe file, its variant name or None)."""
+        recipe_index, variant = self.recipe._origin[index]
+        return f"assets[{recipe_index}]", variant
 
     def resolve(self, relative: str) -> Path:
         """A path from the recipe, resolved against the recipe's folder."""
@@ -571,9 +579,11 @@ def parse_recipe(text: str, path: Path) -> Recipe:
         data["assets"] = [_with_defaults(a, defaults) for a in assets]
         as_json = json.dumps(data)
     try:
-        return Recipe.model_validate_json(as_json, strict=True)
+        recipe = Recipe.model_validate_json(as_json, strict=True)
     except ValidationError as exc:
         raise _at_recipe_index(validation_error(exc, path), origin) from None
+    recipe._origin = origin or [(i, None) for i in range(len(recipe.assets))]
+    return recipe
 
 
 def _at_recipe_index(err: RecipeError, origin: list[tuple[int, str | None]] | None) -> RecipeError:
