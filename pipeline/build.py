@@ -191,6 +191,7 @@ def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progr
 def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progress,
            report: AssetReport, detailizer_override: str | None) -> None:
     from pipeline.detailize import get_detailizer
+    from pipeline.engines import make_collision, make_lods
     from pipeline.export import apply_pivot, export_asset
     from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
     from pipeline.regions import apply_regions
@@ -229,11 +230,14 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
         mesh = mesh_fine_grid(fine, MeshSettings(taubin_iterations=export.taubin_iterations,
                                                  max_triangles=export.max_triangles,
                                                  vertex_colors=export.vertex_colors))
+        lods = make_lods(mesh, fine, export.lods)
+        collision = make_collision(export.collision, mesh, grid)
 
     with _timed(report, "export", progress):
         written, pivot_offset = export_asset(mesh, out_dir, asset.name, export.formats, export.pivot,
                                              preview_size_px=export.preview_size_px if export.preview else None,
-                                             glb_material=export.glb_material)
+                                             glb_material=export.glb_material, profile=export.profile,
+                                             lods=lods, collision=collision)
 
     report.outputs = {
         kind: {"path": path.name, "sha256": sha256_file(path), "bytes": path.stat().st_size}
@@ -253,6 +257,8 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
         "fine_grid_shape": list(fine.shape),
         "pivot_offset_m": [round(float(v), 9) for v in pivot_offset],
         "mesh": mesh_stats(apply_pivot(mesh, export.pivot)[0]),  # stats of the geometry as exported
+        "engine": {"profile": export.profile.value, "lod_triangles": [len(m.faces) for m in (mesh, *lods)],
+                   "collision": export.collision.value, "collision_pieces": len(collision)},
     }
 
 

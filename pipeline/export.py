@@ -19,13 +19,13 @@ import os
 import threading
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
 from pipeline.errors import DecollageError, ExportError
 from pipeline.mesh import mesh_stats  # noqa: F401 - part of this module's API (manifest facts)
-from pipeline.recipe import ExportFormat, Pivot
+from pipeline.recipe import EngineProfile, ExportFormat, Pivot
 
 if TYPE_CHECKING:
     import trimesh
@@ -210,34 +210,51 @@ def pivot_translation(bounds_m: np.ndarray, pivot: Pivot) -> np.ndarray:
 
 
 def apply_pivot(mesh: "trimesh.Trimesh", pivot: Pivot) -> tuple["trimesh.Trimesh", np.ndarray]:
-    """A translated copy of ``mesh`` and the (3,) translation in metres that was applied.
+    """A translated copy of ``mesh`` and the (3,) translation in metres that was applied."""
+    shift = pivot_translation(mesh.bounds, pivot)
+    return transformed(mesh, shift), shift
 
-    The copy shares faces, carries the vertex normals (a translation does not
-    change them) and the vertex or face colours; it has no metadata, so nothing
-    from the caller leaks into the files. Built from arrays because
-    ``Trimesh.copy`` deep-copies and re-hashes everything (~10× slower here).
+
+def transformed(mesh: "trimesh.Trimesh", shift: np.ndarray, linear: np.ndarray | None = None) -> "trimesh.Trimesh":
+    """A copy of ``mesh`` translated by ``shift`` (3,), then mapped by ``linear`` (3, 3; det > 0) if given.
+
+    The copy shares faces, carries the vertex normals and the vertex or face
+    colours; it has no metadata, so nothing from the caller leaks into the
+    files. Built from arrays because ``Trimesh.copy`` deep-copies and re-hashes
+    everything (~10× slower here).
     """
     import trimesh
 
-    shift = pivot_translation(mesh.bounds, pivot)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64) + shift
+    normals = np.asarray(mesh.vertex_normals)
+    if linear is not None:
+        vertices = vertices @ linear.T
+        normals = normals @ linear.T
+        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
     kind = getattr(mesh.visual, "kind", None)
-    moved = trimesh.Trimesh(
-        vertices=np.asarray(mesh.vertices, dtype=np.float64) + shift,
+    return trimesh.Trimesh(
+        vertices=vertices,
         faces=np.asarray(mesh.faces),
-        vertex_normals=np.asarray(mesh.vertex_normals),
+        vertex_normals=normals,
         vertex_colors=np.asarray(mesh.visual.vertex_colors) if kind == "vertex" else None,
         face_colors=np.asarray(mesh.visual.face_colors) if kind == "face" else None,
         process=False,
         validate=False,
     )
-    return moved, shift
 
 
 # --------------------------------------------------------------------------- encoders
 
 
 def _encode_glb(mesh: "trimesh.Trimesh", stem: str, matte_material: bool = False) -> bytes:
-    """GLB with normals and COLOR_0; ``matte_material`` adds a white non-metallic material.
+    """One mesh as a GLB node named ``stem`` (see ``_encode_glb_nodes``)."""
+    return _encode_glb_nodes([(stem, mesh)], matte_material)
+
+
+def _encode_glb_nodes(nodes: list[tuple[str, "trimesh.Trimesh"]], matte_material: bool = False) -> bytes:
+    """GLB with one named node (and mesh) per entry, normals and COLOR_0 where coloured.
+
+    ``matte_material`` adds a white non-metallic material.
 
     Without a material, glTF's default one is fully metallic, which some
     renderers (three.js, for one) show almost black; with one, trimesh reads the
@@ -247,12 +264,13 @@ def _encode_glb(mesh: "trimesh.Trimesh", stem: str, matte_material: bool = False
     import trimesh
 
     scene = trimesh.Scene()
-    scene.add_geometry(mesh, geom_name=stem, node_name=stem)
+    for name, mesh in nodes:
+        scene.add_geometry(mesh, geom_name=name, node_name=name)
 
     def finish_tree(tree: dict) -> None:
         tree["asset"]["generator"] = GENERATOR
         if matte_material:
-            tree["materials"] = [{"name": stem, **_GLB_MATERIAL}]
+            tree["materials"] = [{"name": nodes[0][0], **_GLB_MATERIAL}]
         for gltf_mesh in tree.get("meshes", []):
             gltf_mesh.pop("extras", None)  # trimesh copies mesh.metadata here; keep files clean
             for primitive in gltf_mesh["primitives"]:
@@ -308,54 +326,69 @@ def export_asset(
     pivot: Pivot = Pivot.BOTTOM_CENTER,
     preview_size_px: int | None = None,
     glb_material: bool = False,
+    profile: EngineProfile = EngineProfile.GENERIC,
+    lods: Sequence["trimesh.Trimesh"] = (),
+    collision: Sequence["trimesh.Trimesh"] = (),
 ) -> tuple[dict[str, Path], np.ndarray]:
-    """Write all files of one asset, all or nothing: ``<stem>.<format>`` and ``<stem>.png``.
+    """Write all files of one asset, all or nothing: ``<stem>.<format>``, ``<stem>.png`` and engine extras.
 
     Args:
-        mesh: the asset in the canonical frame, metres (see mesh.py).
+        mesh: the asset (LOD0) in the canonical frame, metres (see mesh.py).
         out_dir: created if missing.
         stem: file name without extension, also the GLB node/mesh name.
         formats: mesh formats to write, in order.
-        pivot: where the exported origin sits.
+        pivot: where the exported origin sits (computed on ``mesh``, applied to every mesh).
         preview_size_px: also write a preview PNG of this size (preview.py); None = no preview.
-        glb_material: give the GLB a white matte material (see ``_encode_glb``).
+        glb_material: give the GLB a white matte material (see ``_encode_glb_nodes``).
+        profile: engine naming/layout/axes (pipeline/engines.py); LOD and collision
+            meshes go into the GLB outputs only; OBJ/STL/PLY hold LOD0.
+        lods: LOD1..n meshes (same frame as ``mesh``).
+        collision: collision pieces (same frame as ``mesh``).
 
     Returns:
         (kind → final path, with kinds ``"glb"``, ``"obj"``, ``"stl"``, ``"ply"``,
-        ``"preview"`` in writing order; the (3,) pivot translation in metres that
-        was applied to the mesh, for the manifest).
+        ``"preview"`` and ``"glb_LOD1"``-style kinds for extra GLB files; the (3,)
+        pivot translation in metres that was applied, for the manifest).
 
     Raises:
         ExportError: the folder is not writable, or encoding/writing any file failed;
             in that case none of this call's files exist.
     """
+    from pipeline.engines import layout, other_format_transform
+
     if not stem or Path(stem).name != stem or stem.startswith("."):
         raise ValueError(f"stem must be a plain, visible file name, got {stem!r}")
     out_dir = Path(out_dir)
     ensure_writable_dir(out_dir)
     moved, shift = apply_pivot(mesh, pivot)
-    def encoder(fmt: ExportFormat) -> Callable[[], bytes]:
-        if fmt == ExportFormat.GLB and glb_material:
-            return lambda: _encode_glb(moved, stem, matte_material=True)
-        return lambda: ENCODERS[fmt](moved, stem)
+    plan = layout(profile, stem, moved, [transformed(m, shift) for m in lods],
+                  [transformed(m, shift) for m in collision])
+    linear = other_format_transform(profile)
+    other = transformed(moved, np.zeros(3), linear) if linear is not None else moved
 
-    jobs: list[tuple[str, str, Callable[[], bytes]]] = [
-        (fmt.value, fmt.value, encoder(fmt)) for fmt in (ExportFormat(f) for f in formats)
-    ]
+    jobs: list[tuple[str, str, Callable[[], bytes]]] = []
+    for fmt in (ExportFormat(f) for f in formats):
+        if fmt == ExportFormat.GLB:
+            jobs.append(("glb", f"{stem}.glb", lambda nodes=plan.main_nodes: _encode_glb_nodes(nodes, glb_material)))
+            for file_stem, nodes in plan.extra_files:
+                jobs.append((f"glb{file_stem[len(stem):]}", f"{file_stem}.glb",
+                             lambda nodes=nodes: _encode_glb_nodes(nodes, glb_material)))
+        else:
+            jobs.append((fmt.value, f"{stem}.{fmt.value}", lambda fmt=fmt: ENCODERS[fmt](other, stem)))
     if preview_size_px is not None:
         from pipeline.preview import preview_png
 
-        jobs.append(("preview", "png", lambda: preview_png(moved, preview_size_px)))
+        jobs.append(("preview", f"{stem}.png", lambda: preview_png(moved, preview_size_px)))
     written: dict[str, Path] = {}
     with AtomicWriter(out_dir) as writer:
-        for kind, suffix, encode in jobs:
-            path = out_dir / f"{stem}.{suffix}"
+        for kind, filename, encode in jobs:
+            path = out_dir / filename
             try:
                 data = encode()
             except DecollageError:
                 raise
             except Exception as exc:  # a library failure while encoding: report it as ours
-                raise ExportError(f"could not encode {suffix.upper()}: {exc}", file=path,
+                raise ExportError(f"could not encode {path.suffix[1:].upper()}: {exc}", file=path,
                                   hint="this is likely a bug; please report it with the recipe") from exc
             writer.add(path, data)
             written[kind] = path

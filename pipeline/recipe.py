@@ -108,6 +108,21 @@ class ExportFormat(str, Enum):
     PLY = "ply"
 
 
+class EngineProfile(str, Enum):
+    """Node naming, LOD/collision layout and axes for a game engine (pipeline/engines.py)."""
+
+    GENERIC = "generic"
+    UNITY = "unity"
+    UNREAL = "unreal"
+    GODOT = "godot"
+
+
+class CollisionKind(str, Enum):
+    NONE = "none"
+    HULL = "hull"  # convex hull of LOD0
+    BOXES = "boxes"  # boxes merged from the coarse grid's occupied cells
+
+
 class Pivot(str, Enum):
     """Where the exported mesh's origin sits."""
 
@@ -368,6 +383,28 @@ class ExportSettings(_Strict):
     vertex_colors: bool = True
     glb_material: bool = Field(False, description="Give GLBs a white matte material, for viewers whose default "
                                "glTF material (fully metallic) shows vertex colours too dark.")
+    profile: EngineProfile = Field(EngineProfile.GENERIC, description="Engine conventions for names, LODs, "
+                                   "collision and axes: generic, unity, unreal, godot.")
+    lods: Optional[Union[list[int], list[float]]] = Field(
+        None, description="LOD chain: ratios of LOD0's triangles ([1.0, 0.5, 0.25]) or triangle counts "
+                          "([20000, 5000, 1000]); the first entry is LOD0.")
+    collision: CollisionKind = CollisionKind.NONE
+
+    @field_validator("lods")
+    @classmethod
+    def _lod_chain(cls, v: list | None) -> list | None:
+        if v is None:
+            return v
+        if not v:
+            raise ValueError("lods is empty; give e.g. [1.0, 0.5, 0.25] or leave it out")
+        if any(b >= a for a, b in zip(v, v[1:])):
+            raise ValueError("lods must decrease from LOD0 to the last level")
+        if isinstance(v[0], float):
+            if v[0] != 1.0 or v[-1] <= 0:
+                raise ValueError("lod ratios start at 1.0 (LOD0) and stay above 0")
+        elif v[-1] < 4:
+            raise ValueError("a LOD needs at least 4 triangles")
+        return v
 
     @field_validator("formats")
     @classmethod
@@ -493,7 +530,7 @@ def _clean_loc(loc: tuple) -> tuple:
             isinstance(item, str) and item in _TAGGED_UNION_MEMBERS and isinstance(prev, int)
         ):
             continue
-        if isinstance(item, str) and item.startswith(("function-", "literal[")):
+        if isinstance(item, str) and item.startswith(("function-", "literal[", "list[")):
             continue
         cleaned.append(item)
     return tuple(cleaned)

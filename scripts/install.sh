@@ -30,6 +30,14 @@ if [ "${1:-}" = "test" ]; then extra="[test]"; fi
 quiet .venv/bin/python -m pip install --quiet -c constraints.txt -e ".${extra}"
 # pip's resolver cannot see every conflict (ecosystem.md §1.1): prove the stack imports.
 quiet .venv/bin/python -c "import build123d, trimesh, torch, skimage, fast_simplification, fontTools, shapely, pipeline.cli; print('decollage environment ready: torch', torch.__version__, '| build123d', build123d.__version__)"
-if [ "${1:-}" = "test" ] && [ ! -x .venv-cadquery/bin/python ]; then
-    bash scripts/install_cadquery.sh
+if [ "${1:-}" = "test" ]; then
+    if [ ! -x .venv-cadquery/bin/python ]; then
+        bash scripts/install_cadquery.sh
+    fi
+    # The Khronos glTF validator checks every GLB the tests write (npm, pinned in tools/gltf).
+    if command -v npm >/dev/null; then
+        npm ci --silent --no-audit --no-fund --prefix tools/gltf
+    else
+        echo "npm not found: the glTF validator tests will be skipped" >&2
+    fi
 fi

@@ -88,3 +88,13 @@ def test_rebuilds_are_byte_identical(showcase, tmp_path):
         if entry["name"] in again:
             assert entry["outputs"] == again[entry["name"]]["outputs"]  # same sha256 for GLB and PNG
     assert set(again) == {"cottage", "mushroom"}
+
+
+def test_glbs_pass_the_khronos_validator(showcase):
+    from tests.gltf_validator import validate_glbs
+
+    out, _ = showcase
+    reports = validate_glbs(sorted(out.glob("*.glb")))
+    assert len(reports) == 4
+    for report in reports:
+        assert report["errors"] == 0 and report["warnings"] == 0, report
