@@ -123,17 +123,18 @@ def test_fail_fast_stops_after_the_first_failure(batch, tmp_path):
     assert json.loads(result.stdout)["summary"] == {"assets": 7, "built": 1, "cached": 0, "failed": 6}
 
 
-def test_killed_build_resumes_with_only_the_missing_assets(batch, tmp_path):
+@pytest.mark.parametrize("sig, jobs", [(signal.SIGKILL, 1), (signal.SIGINT, 2)])
+def test_killed_build_resumes_with_only_the_missing_assets(batch, tmp_path, sig, jobs):
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "pipeline.cli", "build", str(batch), "-o", str(out), "--quiet"]
+    cmd = [sys.executable, "-m", "pipeline.cli", "build", str(batch), "-o", str(out), "--quiet", "--jobs", str(jobs)]
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
     records = out / ".decollage"
     deadline = time.time() + 120
     while time.time() < deadline and len(list(records.glob("*.json")) if records.exists() else []) < 2:
         time.sleep(0.05)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    os.killpg(proc.pid, sig)  # the whole process group, as a terminal's Ctrl-C or a CI timeout would
+    proc.wait(timeout=60)
     done_before = {p.stem for p in records.glob("*.json")}
     assert 2 <= len(done_before) < 7
     code, resumed = _json("build", batch, "-o", out)
