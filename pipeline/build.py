@@ -110,7 +110,8 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
         try:
             det = get_detailizer(name, checkpoint, asset.detailize.device)
         except DecollageError as exc:
-            raise RecipeError(exc.message, file=loaded.path, field=f"{where}.detailize.detailizer",
+            message = f"{exc.file}: {exc.message}" if exc.file else exc.message
+            raise RecipeError(message, file=loaded.path, field=f"{where}.detailize.detailizer",
                               hint=exc.hint) from None
         for r, rule in enumerate(asset.regions):
             for attr, vocab in (("style", det.style_names), ("part", det.part_names)):

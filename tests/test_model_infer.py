@@ -1,0 +1,168 @@
+"""The learned detailizer behind the pipeline protocol, with tiny random-init checkpoints."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from model.checkpoint import Checkpoint, save_checkpoint
+from model.config import ModelConfig
+from model.masks import fill_nearest
+from model.infer import DEFAULT_CHECKPOINT, DecollageDetailizer, resolve_device
+from model.networks import Generator
+from pipeline import detailize as pipeline_detailize
+from pipeline.errors import DetailizeError
+from pipeline.grid import EMPTY, LabeledGrid
+
+STYLES = ("tower", "tree", "cake")
+PARTS = ("body", "roof")
+
+
+@pytest.fixture
+def ckpt_path(tmp_path):
+    cfg = ModelConfig.lean(len(PARTS), len(STYLES)).scaled(0.125)
+    torch.manual_seed(0)
+    gen = Generator(cfg)
+    with torch.no_grad():  # distinct style codes, so styles change the output
+        gen.style_codes.copy_(torch.randn(gen.style_codes.shape))
+    ck = Checkpoint(cfg, STYLES, PARTS, (PARTS, ("body",), PARTS), gen.state_dict(), {"step": 0})
+    return str(save_checkpoint(tmp_path / "tiny.pt", ck))
+
+
+def _grid(shape=(3, 4, 2), style_names=("cake", "tower"), part_names=("roof", "body"), style_of=(0, 1)):
+    occ = np.zeros(shape, dtype=bool)
+    occ[: shape[0] - 1, : shape[1] - 1, :] = True
+    part = np.where(occ, 0, EMPTY).astype(np.int16)
+    part[:, 0, :][occ[:, 0, :]] = 1  # bottom layer is "body" (index 1 here), the rest "roof"
+    style = np.where(occ, np.where(part == 1, style_of[1], style_of[0]), EMPTY).astype(np.int16)
+    return LabeledGrid(occ, part, style, part_names, style_names, voxel_size_m=0.5, origin_m=(1.0, 2.0, 3.0))
+
+
+@pytest.mark.parametrize("shape", [(3, 3, 3), (3, 4, 2), (6, 2, 1)])
+def test_output_shapes_cubic_and_non_cubic(ckpt_path, shape):
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    g = _grid(shape)
+    fine = det.detailize(g, seed=0)
+    assert fine.shape == tuple(16 * n for n in shape)
+    assert fine.occupancy.dtype == np.float32 and 0.0 <= fine.occupancy.min() and fine.occupancy.max() <= 1.0
+    assert fine.style.shape == fine.shape and fine.style.dtype == np.int16
+    assert fine.style.min() >= 0  # every voxel has a style, also empty ones
+    assert fine.voxel_size_m == pytest.approx(0.5 / 16) and fine.origin_m == (1.0, 2.0, 3.0)
+    assert fine.style_names == g.style_names and fine.detailizer == "decollage"
+
+
+def test_styles_are_input_indices_upsampled(ckpt_path):
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    g = _grid((3, 4, 2))
+    fine = det.detailize(g)
+    # fine voxel (16i+a, 16j+b, 16k+c) carries coarse cell (i, j, k)'s style (an index into g.style_names)
+    assert np.array_equal(fine.style[::16, ::16, ::16][g.occupancy], g.style[g.occupancy])
+    assert fine.style[5, 3, 7] == 1 and fine.style[5, 20, 7] == 0  # body (tower = 1) at the bottom, roof (cake) above
+
+
+def test_names_map_to_checkpoint_indices(ckpt_path):
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    assert det.style_names == STYLES and det.part_names == PARTS and det.learned
+    # The same styling, spelled with different grid vocabularies, gives the same output.
+    a = det.detailize(_grid(style_names=("cake", "tower"), style_of=(0, 1)))
+    b = det.detailize(_grid(style_names=("tower", "cake", "tree"), style_of=(1, 0)))
+    assert np.array_equal(a.occupancy, b.occupancy)
+    c = det.detailize(_grid(style_names=("tree", "tower"), style_of=(0, 1)))  # roof now "tree"
+    assert not np.allclose(a.occupancy, c.occupancy)
+    # Swapping the part vocabulary order with the same meaning gives the same output too.
+    g = _grid()
+    swapped = LabeledGrid(g.occupancy, np.where(g.occupancy, 1 - g.part, EMPTY).astype(np.int16), g.style,
+                          ("body", "roof"), g.style_names, g.voxel_size_m, g.origin_m)
+    assert np.array_equal(det.detailize(swapped).occupancy, a.occupancy)
+
+
+def test_unknown_style_and_part_list_known(ckpt_path):
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    with pytest.raises(DetailizeError, match=r"unknown style 'gothic' \(known: tower, tree, cake\)"):
+        det.detailize(_grid(style_names=("gothic", "tower")))
+    with pytest.raises(DetailizeError, match=r"unknown part 'leaf' \(known: body, roof\)"):
+        det.detailize(_grid(part_names=("leaf", "body")))
+    # A name in the grid's vocabulary that no voxel uses is not an error.
+    det.detailize(_grid(style_names=("cake", "tower", "gothic")))
+
+
+def test_deterministic_and_describe(ckpt_path):
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    g = _grid()
+    torch.manual_seed(123)
+    before = torch.rand(1)
+    a, b = det.detailize(g, seed=5), det.detailize(g, seed=5)
+    assert np.array_equal(a.occupancy, b.occupancy)
+    torch.manual_seed(123)
+    assert torch.equal(torch.rand(1), before)  # the caller's RNG is untouched
+    d = det.describe()
+    assert d["name"] == "decollage" and d["learned"] is True and d["style_names"] == list(STYLES)
+    assert d["factor"] == 16 and d["generator_params"] > 0 and d["device"] == "cpu"
+
+
+def test_output_is_generator_on_bbox_plus_margin(ckpt_path):
+    """The output is the generator run on the occupied box + 1 empty cell, cut to the grid, 0 elsewhere."""
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    g = _grid((4, 3, 5))  # occupied: x 0..2, y 0..1, z 0..4
+    fine = det.detailize(g)
+    # box + margin: x [-1, 4), y [-1, 3), z [-1, 6): one empty cell added outside the grid where the box touches it
+    pad = ((1, 0), (1, 0), (1, 1))
+    occ = np.pad(g.occupancy, pad)
+    gen = det.generator
+    # Rebuild the inputs by hand: roof → checkpoint part 1, body → 0; cake → style 2 (roof), tower → 0 (body).
+    lab = np.where(g.occupancy, np.where(g.part == 1, 0, 1), -1)
+    sty = np.where(g.occupancy, np.where(g.part == 1, 0, 2), -1)
+    part = fill_nearest(np.pad(lab, pad, constant_values=-1), occ)
+    style = fill_nearest(np.pad(sty, pad, constant_values=-1), occ)
+    with torch.inference_mode():
+        ins = gen.make_inputs(torch.from_numpy(occ)[None], torch.from_numpy(part)[None], torch.from_numpy(style)[None])
+        ref = gen(*ins)[-1][0, 0].clamp(0, 1).numpy()
+    np.testing.assert_allclose(fine.occupancy, ref[16:, 16:, 16:-16], atol=1e-5)
+
+
+def test_field_is_empty_far_from_the_shape(ckpt_path):
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    occ = np.zeros((7, 5, 6), dtype=bool)
+    occ[1:3, 1:3, 1:3] = True  # crop = cells 0..3 on every axis
+    e = np.where(occ, 0, EMPTY).astype(np.int16)
+    fine = det.detailize(LabeledGrid(occ, e, e, PARTS, STYLES, 1.0)).occupancy
+    assert fine[64:].max() == 0 and fine[:, 64:].max() == 0 and fine[:, :, 64:].max() == 0
+    assert fine[16:48, 16:48, 16:48].mean() > 0  # the generator's output inside the crop
+
+
+def test_empty_grid_gives_empty_field(ckpt_path):
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    z = np.zeros((2, 1, 3), dtype=bool)
+    e = np.full(z.shape, EMPTY, dtype=np.int16)
+    fine = det.detailize(LabeledGrid(z, e, e, PARTS, STYLES, 1.0))
+    assert fine.shape == (32, 16, 48) and fine.occupancy.max() == 0.0
+
+
+def test_registry_refuses_bad_checkpoint_and_missing_default(tmp_path, monkeypatch):
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"\x00" * 100)
+    with pytest.raises(DetailizeError, match="not a readable decollage checkpoint"):
+        pipeline_detailize.get_detailizer("decollage", str(junk), "cpu")
+    with pytest.raises(DetailizeError, match="not found"):
+        pipeline_detailize.get_detailizer("decollage", str(tmp_path / "missing.pt"), "cpu")
+    monkeypatch.setattr("model.infer.DEFAULT_CHECKPOINT", tmp_path / "weights" / "things.pt")
+    with pytest.raises(DetailizeError, match="no shipped model yet") as e:
+        DecollageDetailizer(None, device="cpu")
+    assert "upsample" in e.value.hint
+    assert DEFAULT_CHECKPOINT.name == "things.pt"
+
+
+def test_registry_loads_a_good_checkpoint(ckpt_path):
+    det = pipeline_detailize.get_detailizer("decollage", ckpt_path, "cpu")
+    assert isinstance(det, DecollageDetailizer) and "decollage" in pipeline_detailize.known_detailizers()
+
+
+def test_device_resolution():
+    assert resolve_device("cpu").type == "cpu"
+    assert resolve_device("auto").type == ("cuda" if torch.cuda.is_available() else "cpu")
+    with pytest.raises(DetailizeError, match="unknown device"):
+        resolve_device("gpu-please")
+    if not torch.cuda.is_available():
+        with pytest.raises(DetailizeError, match="no CUDA GPU"):
+            resolve_device("cuda")
