@@ -1,14 +1,16 @@
 """Style colours: one fixed RGBA colour per style, used for vertex colours and previews.
 
-Colours are assigned by a style's *index* in the grid's ``style_names`` (not by
-its name), so an asset's first style is always brick red, its second slate
-blue, and so on; the same recipe therefore always gives the same colours. The
-twelve colours are muted enough to look pleasant on a game asset preview and
-far enough apart (hue and lightness) to tell regions apart at a glance. With
-more than twelve styles the palette repeats.
+Colours follow the style's *name*: a stable hash of the name picks its palette
+slot, so "moss" has the same colour in every asset of a batch. Within one asset,
+a style whose slot an earlier style already took moves to the next free slot,
+so an asset's styles always differ while it has at most twelve. The twelve
+colours are muted enough to look pleasant on a game asset preview and far
+enough apart (hue and lightness) to tell regions apart at a glance.
 """
 
 from __future__ import annotations
+
+import hashlib
 
 import numpy as np
 
@@ -34,17 +36,20 @@ NEUTRAL_RGBA: tuple[int, int, int, int] = (190, 190, 190, 255)
 
 
 def style_color(name: str, index: int) -> tuple[int, int, int, int]:
-    """RGBA (uint8 values) of the style at ``index`` in ``style_names``.
+    """RGBA (uint8 values) of palette slot ``index`` (wrapping); a negative index gives ``NEUTRAL_RGBA``.
 
-    ``name`` is accepted for readability at call sites and future use; the
-    colour depends on ``index`` only (deterministic, independent of naming).
-    A negative index (no style) gives ``NEUTRAL_RGBA``.
+    ``name`` is kept for call-site readability; ``palette_rgba`` decides slots from names.
     """
-    del name  # the colour is defined by position, see the module docstring
+    del name
     if index < 0:
         return NEUTRAL_RGBA
     r, g, b = PALETTE[index % len(PALETTE)][1]
     return (r, g, b, 255)
+
+
+def preferred_slot(name: str) -> int:
+    """The palette slot a style name asks for: a stable hash (not Python's salted ``hash``)."""
+    return int.from_bytes(hashlib.sha256(name.encode("utf-8")).digest()[:4], "little") % len(PALETTE)
 
 
 def palette_rgba(style_names: tuple[str, ...] | list[str]) -> np.ndarray:
@@ -53,6 +58,15 @@ def palette_rgba(style_names: tuple[str, ...] | list[str]) -> np.ndarray:
     Index it with ``np.where(valid, style, N)`` to colour style arrays that may
     hold EMPTY or out-of-range values.
     """
-    rows = [style_color(name, i) for i, name in enumerate(style_names)]
+    taken: set[int] = set()
+    rows = []
+    for name in style_names:
+        slot = preferred_slot(name)
+        for step in range(len(PALETTE)):
+            if (slot + step) % len(PALETTE) not in taken:
+                slot = (slot + step) % len(PALETTE)
+                break
+        taken.add(slot)
+        rows.append(style_color(name, slot))
     rows.append(NEUTRAL_RGBA)
     return np.asarray(rows, dtype=np.uint8)

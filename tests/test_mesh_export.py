@@ -73,9 +73,15 @@ def sphere_mesh(sphere_grid) -> trimesh.Trimesh:
 # --------------------------------------------------------------------------- palette
 
 
-def test_palette_is_fixed_distinct_and_indexed():
+def test_palette_follows_names_and_keeps_an_assets_styles_apart():
     assert style_color("brick", 0) == (*PALETTE[0][1], 255)
-    assert style_color("anything", 0) == style_color("other", 0)  # colour depends on index only
+    # the same name has the same colour in every asset, whatever its position
+    moss_first = palette_rgba(("moss", "stone"))[0]
+    moss_second = palette_rgba(("stone", "moss"))[1]
+    assert tuple(moss_first) == tuple(moss_second)
+    # up to twelve styles in one asset never share a colour
+    names = [f"style{i}" for i in range(len(PALETTE))]
+    assert len({tuple(c) for c in palette_rgba(names)[:-1]}) == len(PALETTE)
     colours = {style_color("s", i) for i in range(len(PALETTE))}
     assert len(colours) == len(PALETTE) >= 12
     rgb = np.array([c[:3] for c in colours], dtype=float)
@@ -171,9 +177,11 @@ def test_vertex_colours_follow_style_regions():
     x = mesh.vertices[:, 0]
     left, right = colours[x < split_x - VOXEL], colours[x > split_x + VOXEL]
     assert len(left) > 50 and len(right) > 50
-    assert (left == style_color("brick", 0)).all()
-    assert (right == style_color("slate", 1)).all()
-    assert {tuple(c) for c in colours} == {style_color("brick", 0), style_color("slate", 1)}
+    brick, slate = (tuple(c) for c in palette_rgba(("brick", "slate"))[:2])
+    assert brick != slate
+    assert (left == brick).all()
+    assert (right == slate).all()
+    assert {tuple(c) for c in colours} == {brick, slate}
 
 
 def test_invalid_style_gets_neutral_colour_and_colours_can_be_off():
