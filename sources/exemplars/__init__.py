@@ -24,7 +24,11 @@ def furniture_specs() -> list[ExemplarSpec]:
 
 def things_specs() -> list[ExemplarSpec]:
     """Buildings, plants, cakes and crystals, procedural."""
-    from sources.exemplars.things import THINGS_CATALOGUE
+    try:
+        from sources.exemplars.things import THINGS_CATALOGUE
+    except ImportError:  # not written yet (issue 3, in progress)
+        raise ExemplarError("the 'things' set has no exemplars yet", field="set",
+                            hint="only 'furniture' can be built so far") from None
 
     return [ExemplarSpec(name, category, partial(fn, **kw), f"{fn.__name__}{sorted(kw.items())}")
             for name, (category, fn, kw) in THINGS_CATALOGUE.items()]

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sources.exemplars.prims import ROUND, bar, box, flatten, lathe, rod, sphere, torus
+from sources.exemplars.prims import bar, box, lathe, ring_of, rod, sphere, torus
 
 
 @dataclass(frozen=True)
@@ -106,7 +106,9 @@ def chair_parts(d: ChairDesign) -> dict[str, list]:
     seat_y = sh - seat_t
     parts: dict[str, list] = {"back": [], "seat": [], "leg": [], "armrest": [], "stretcher": []}
     xs, zs = w / 2 - t / 2, dp / 2 - t / 2
-    corners = [(sx * xs, sz * zs) for sx in (-1, 1) for sz in (-1, 1)]
+    # A round seat's legs sit on a circle inside it, not at the square's corners.
+    k = 0.5 if d.seat == "round" else 1.0
+    corners = [(sx * xs * k, sz * zs * k) for sx in (-1, 1) for sz in (-1, 1)]
 
     # Seat.
     if d.seat == "round":
@@ -348,7 +350,12 @@ def table_parts(d: TableDesign) -> dict[str, list]:
                 parts["leg"].append(box((lx * 0.8, apron_h * 0.7, 0.01), (x, ay, lz + 0.012)))
                 parts["leg"].append(sphere((x, ay, lz + 0.03), 0.015))
     elif d.apron != "none" and d.top != "rect":
-        parts["leg"].append(lathe([(min(lx, lz) * 1.3, top0 - apron_h), (min(lx, lz) * 1.3 + 0.02, top0)], sections=48))
+        # A round apron: a ring of short tangential boards (hollow, unlike a lathe solid).
+        r = min(lx, lz) * 1.3
+        n = 32
+        seg = 2 * math.pi * r / n * 1.08
+        parts["leg"] += ring_of(n, r, lambda x, z, a: box((seg, apron_h, 0.022), (x, top0 - apron_h / 2, z),
+                                                          rot_y_deg=-(a + 90)))
 
     # Stretchers / shelf.
     sy = 0.12 if d.legs != "trestle" else 0.3
