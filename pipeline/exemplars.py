@@ -50,6 +50,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
+from pipeline.cache import sha256_file
 from pipeline.errors import DecollageError
 
 if TYPE_CHECKING:
@@ -65,6 +66,9 @@ COARSE_SIDE = 16
 DETAIL_RATIO_MIN = 1.3
 #: Below this fraction of interior voxels an exemplar is a hollow shell (a failed fill), refused.
 MIN_INTERIOR_FRACTION = 0.03
+#: The hollow-shell check only applies from this grid side up: on coarser grids thin parts
+#: (slats, spindles) are one or two voxels thick and have no interior even when filled.
+HOLLOW_CHECK_MIN_RESOLUTION = 128
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 
@@ -315,7 +319,7 @@ def make_exemplar(spec: ExemplarSpec, vocabulary: Vocabulary, resolution: int = 
         raise ExemplarError(f"exemplar '{spec.name}' voxelizes to nothing", field=spec.name,
                             hint="its meshes have no volume (flat or open surfaces only?)")
     figures = detail_figures(occ) if resolution % COARSE_SIDE == 0 else {}
-    if figures and figures["interior"] < MIN_INTERIOR_FRACTION:
+    if figures and resolution >= HOLLOW_CHECK_MIN_RESOLUTION and figures["interior"] < MIN_INTERIOR_FRACTION:
         raise ExemplarError(f"exemplar '{spec.name}' voxelizes to a hollow shell "
                             f"({figures['interior']:.1%} interior voxels)", field=spec.name,
                             hint="its mesh is too open to fill; close the holes or use another model")
@@ -341,14 +345,6 @@ def make_exemplar(spec: ExemplarSpec, vocabulary: Vocabulary, resolution: int = 
 # --------------------------------------------------------------------------- hashing and files
 
 
-def _file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for chunk in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
 def code_hash() -> str:
     """sha256 of the code that makes exemplars (this module, the voxelizer, sources/exemplars)."""
     root = Path(__file__).resolve().parent.parent
@@ -367,7 +363,7 @@ def inputs_hash(set_name: str, vocabulary: Vocabulary, specs: Sequence[ExemplarS
         "vocabulary": vocabulary.to_json(), "code": code_hash(),
         "specs": [{"name": s.name, "category": s.category, "source": s.source, "licence": s.licence,
                    "attribution": s.attribution, "key": s.key,
-                   "files": [_file_sha256(Path(p)) for p in s.input_files]} for s in specs],
+                   "files": [sha256_file(Path(p)) for p in s.input_files]} for s in specs],
     }
     return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
 
