@@ -48,6 +48,7 @@ smoothed targets), ≈ 0.8 s at R = 128; a style sample ≈ 0.7–1.5 s / 0.25 s
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Sequence
@@ -90,9 +91,9 @@ class Exemplar:
             raise DetailizeError(f"exemplar {self.name!r}: labels outside [-1, {len(self.part_names)})",
                                  field="labels", hint="labels index the set's part vocabulary")
 
-    @property
+    @functools.cached_property
     def parts(self) -> tuple[int, ...]:
-        """Part indices this exemplar has (sorted)."""
+        """Part indices this exemplar has (sorted; computed once: a 256³ ``np.unique`` costs ~15 ms)."""
         return tuple(int(p) for p in np.unique(self.labels) if p != EMPTY)
 
 
@@ -132,16 +133,50 @@ class Sample:
         coarse_occupancy: (X, Y, Z) bool, the ×f max-pool of the crop (margin cells empty).
         coarse_labels: (X, Y, Z) int16 part per coarse cell (majority; empty cells nearest-filled).
         assignment: (P,) style index of every part.
-        targets: per level j, (2^(j+1)·X, …) float32 smoothed occupancy in [0, 1].
         sources: names of the exemplars the shape was made of.
+        loss_config, n_levels, factor: how targets are made (``targets``, ``target``).
     """
 
     fine_labels: np.ndarray
     coarse_occupancy: np.ndarray
     coarse_labels: np.ndarray
     assignment: tuple[int, ...]
-    targets: tuple[np.ndarray, ...]
     sources: tuple[str, ...]
+    loss_config: LossConfig
+    n_levels: int
+    factor: int
+
+    @property
+    def targets(self) -> tuple[np.ndarray, ...]:
+        """Per level j, (2^(j+1)·X, …) float32 smoothed occupancy in [0, 1] of the whole crop."""
+        return tuple(self.target(j) for j in range(self.n_levels))
+
+    def target(self, j: int, cells: "tuple[slice, slice, slice] | None" = None) -> np.ndarray:
+        """Level j's target, or only its part over the coarse ``cells`` (equal to cutting ``target(j)``).
+
+        Whole-crop targets are computed once per level and kept. Training windows the
+        fine levels, and smoothing a whole 256³ crop for a 64³ window wastes ~20× the
+        work: a window is smoothed with a halo of the filter's reach (4σ per pass, every
+        residual pass adds one), clipped to the crop, whose border is zero-padded in
+        both cases, so the values are the same.
+        """
+        whole = self.__dict__.setdefault("_whole_targets", {})
+        if cells is None or j in whole:
+            if j not in whole:
+                whole[j] = smooth_target(max_pool(self.fine_labels != EMPTY, self.factor // 2 ** (j + 1)),
+                                         self.loss_config)
+            r = 2 ** (j + 1)
+            return whole[j] if cells is None else whole[j][tuple(slice(c.start * r, c.stop * r) for c in cells)]
+        lc, r = self.loss_config, 2 ** (j + 1)
+        k = self.factor // r
+        passes = lc.smoothing_passes if lc.target_smoothing is TargetSmoothing.PROGRESSIVE else 0
+        halo = int(4.0 * lc.smoothing_sigma + 0.5) * (passes + 1)  # scipy's truncate = 4 radius, per pass
+        size = [n * r for n in self.coarse_occupancy.shape]
+        lo = [max(0, c.start * r - halo) for c in cells]
+        hi = [min(n, c.stop * r + halo) for c, n in zip(cells, size)]
+        fine = self.fine_labels[tuple(slice(a * k, b * k) for a, b in zip(lo, hi))] != EMPTY
+        t = smooth_target(max_pool(fine, k), lc)
+        return t[tuple(slice(c.start * r - a, c.stop * r - a) for c, a in zip(cells, lo))]
 
     def style_index(self) -> np.ndarray:
         """(X, Y, Z) int64 style of every coarse cell (through its part), the generator's style input."""
@@ -327,12 +362,6 @@ def smooth_target(binary: np.ndarray, lc: LossConfig) -> np.ndarray:
     return np.clip(s, 0.0, 1.0).astype(np.float32)
 
 
-def level_targets(fine_binary: np.ndarray, cfg: ModelConfig) -> tuple[np.ndarray, ...]:
-    """Per level j, the max-pool of the fine crop by ``factor / 2^(j+1)``, smoothed (``smooth_target``)."""
-    f = cfg.factor
-    return tuple(smooth_target(max_pool(fine_binary, f // 2 ** (j + 1)), cfg.losses) for j in range(cfg.n_levels))
-
-
 # ----------------------------------------------------------------------------- samples
 
 
@@ -353,8 +382,10 @@ def _finish(fine: np.ndarray, assignment: tuple[int, ...], sources: tuple[str, .
         coarse_occupancy=max_pool(binary, f),
         coarse_labels=coarse_part_labels(fine, f, cfg.n_parts),
         assignment=assignment,
-        targets=level_targets(binary, cfg),
         sources=sources,
+        loss_config=cfg.losses,
+        n_levels=cfg.n_levels,
+        factor=f,
     )
 
 
@@ -403,3 +434,22 @@ def style_sample(exemplars: Sequence[Exemplar], style: int, cfg: ModelConfig, au
         lab = crop_to_bbox(resample_labels(lab, np.maximum(1, np.round(np.asarray(lab.shape) * base)), aug.threshold))
     fine = place_in_crop(lab, rng, cfg.factor, min_cells=min_coarse_cells(cfg))
     return _finish(fine, (int(style),) * cfg.n_parts, (ex.name,), cfg)
+
+
+# ----------------------------------------------------------------------------- dataset files
+
+
+def exemplars_from_set(style_set) -> list[Exemplar]:
+    """A loaded ``pipeline.exemplars.StyleSet`` → training exemplars, in the set's order.
+
+    The set stores uint8 labels (0 empty, ``i + 1`` = vocabulary part ``i``) cropped
+    to each exemplar's box; here they become int16 (``EMPTY``, part index) and the
+    part vocabulary is the set's (e.g. ``("bottom", "top")`` for "things"), so style
+    index s is exemplar s of the set.
+    """
+    parts = tuple(style_set.vocabulary.parts)
+    return [
+        Exemplar(name=ex.name, category=ex.category, labels=ex.labels.astype(np.int16) - 1, part_names=parts,
+                 resolution=int(style_set.resolution))
+        for ex in style_set.exemplars
+    ]

@@ -92,6 +92,8 @@ class TrainConfig:
         recon_steps_early, recon_early_iters: reconstruction steps per iteration (4)
             during the first iterations (5000), then 1.
         checkpoint_every: iterations between ``last.pt`` saves.
+        preview_every: iterations between sample previews (``previews/step_NNNNNN.png``,
+            ``model.previews``; 0 = none, else also one at the end).
         resolution: R, fine grid edge the shapes are sized for (see module docstring).
         whole_levels, window_cells: levels ``< whole_levels`` run on the whole shape, the
             finer ones on a random window of ``window_cells``³ coarse cells around the
@@ -109,6 +111,7 @@ class TrainConfig:
     recon_steps_early: int = 4
     recon_early_iters: int = 5000
     checkpoint_every: int = 100
+    preview_every: int = 0
     resolution: int = 256
     whole_levels: int = 2
     window_cells: int = 4
@@ -123,6 +126,7 @@ class TrainConfig:
             (1 <= self.recon_steps_early <= 8, "recon_steps_early", "use 1 to 8 (the reference: 4)"),
             (self.recon_early_iters >= 0, "recon_early_iters", "use 0 or more"),
             (self.checkpoint_every >= 1, "checkpoint_every", "use 1 or more"),
+            (self.preview_every >= 0, "preview_every", "use 0 (no previews) or more"),
             (self.resolution >= 16, "resolution", "use 256 (the paper) or 128"),
             (self.window_cells >= 0 and self.whole_levels >= 0, "window_cells", "use 0 (no windows) or ≥ 2"),
             (self.lr > 0, "lr", "the reference uses 1e-4"),
@@ -271,7 +275,7 @@ class SampleView:
     def target(self, j: int):
         import torch
 
-        t = self._crop(self.sample.targets[j], j, 2 ** (j + 1))
+        t = self.sample.target(j, self._cells(j))
         return torch.from_numpy(np.ascontiguousarray(t))[None, None].to(self.device)
 
     def styled(self, j: int) -> StyledCoarse:
@@ -485,6 +489,21 @@ class Trainer:
         self.wall_s = float(ck.training.get("wall_time_s", 0.0))
 
 
+class _Previews:
+    """Writes ``model.previews`` sheets of fixed inputs (drawn once, on first use) into ``folder``."""
+
+    def __init__(self, trainer: Trainer, folder: Path) -> None:
+        self.trainer, self.folder, self.samples = trainer, folder, None
+
+    def write(self, step: int) -> Path:
+        from model.previews import preview_samples, write_preview
+
+        t = self.trainer
+        if self.samples is None:
+            self.samples = preview_samples(t.exemplars, t.cfg, t.aug, n=4)
+        return write_preview(t.gen, self.samples, self.folder / f"step_{step:06d}.png")
+
+
 def _plain(obj: Any) -> Any:
     """Dataclass dicts → JSON types (tuples → lists)."""
     if isinstance(obj, dict):
@@ -521,6 +540,7 @@ def train(
         log_path.unlink()  # a fresh run starts a fresh log
     losses: dict[str, float] = {}
     times = []
+    previews = _Previews(trainer, out / "previews") if tcfg.preview_every else None
     with open(log_path, "a", encoding="utf-8") as log:
         while trainer.step < tcfg.steps:
             t0 = time.perf_counter()
@@ -536,6 +556,8 @@ def train(
             log.flush()
             if trainer.step % tcfg.checkpoint_every == 0 or trainer.step == tcfg.steps:
                 save_checkpoint(last, trainer.checkpoint(full=True))
+            if previews and (trainer.step % tcfg.preview_every == 0 or trainer.step == tcfg.steps):
+                previews.write(trainer.step)
             if progress is not None:
                 progress(trainer.step, tcfg.steps, losses)
     save_checkpoint(model_path, trainer.checkpoint(full=False))

@@ -275,6 +275,11 @@ def version() -> None:
     typer.echo(f"decollage {__version__}")
 
 
+from pipeline.train_cli import train_command  # noqa: E402 - registered after the shared helpers above
+
+app.command("train")(train_command)
+
+
 def main() -> None:
     """Console-script entry point; turns unexpected exceptions into exit code 3."""
     try:

@@ -112,6 +112,23 @@ def test_shapes_aligned_across_levels_and_margin_empty():
     assert s.style_index().shape == c
 
 
+@pytest.mark.parametrize("smoothing", [TargetSmoothing.GAUSSIAN, TargetSmoothing.PROGRESSIVE])
+def test_windowed_target_equals_cut_of_whole_target(smoothing):
+    cfg = dataclasses.replace(_cfg(), losses=dataclasses.replace(_cfg().losses, target_smoothing=smoothing))
+    s = augmented_sample(_set(), cfg, AUG, seed=3, step=2)
+    fresh = augmented_sample(_set(), cfg, AUG, seed=3, step=2)  # nothing cached: the window path
+    c = s.coarse_occupancy.shape
+    for cells in [(slice(0, 2), slice(1, 3), slice(0, 2)), tuple(slice(n - 2, n) for n in c),
+                  tuple(slice(0, n) for n in c)]:
+        for j in range(4):
+            r = 2 ** (j + 1)
+            whole = s.targets[j][tuple(slice(a.start * r, a.stop * r) for a in cells)]
+            windowed = fresh.target(j, cells)
+            assert j not in fresh.__dict__.get("_whole_targets", {})
+            np.testing.assert_allclose(windowed, whole, atol=1e-6)
+            assert np.array_equal(s.target(j, cells), whole)  # cached path cuts the whole target
+
+
 def test_deterministic_for_equal_seeds():
     exs, cfg = _set(), _cfg()
     a = augmented_sample(exs, cfg, AUG, seed=7, step=3)
