@@ -280,6 +280,11 @@ from pipeline.train_cli import train_command  # noqa: E402 - registered after th
 app.command("train")(train_command)
 
 
+from pipeline.styles_cli import styles_app  # noqa: E402 - uses the shared helpers above lazily
+
+app.add_typer(styles_app, name="styles")
+
+
 def main() -> None:
     """Console-script entry point; turns unexpected exceptions into exit code 3."""
     try:

@@ -79,15 +79,18 @@ def contact_sheet(style_set: StyleSet, tile_px: int = 320, columns: int = 8) -> 
     columns = max(1, min(columns, n))
     rows = -(-n // columns)
     legend_px = 30
-    sheet = Image.new("RGB", (columns * tile_px, rows * (tile_px + caption_px) + legend_px), (255, 255, 255))
+    title = f"set '{style_set.name}': {n} exemplars at {style_set.resolution}^3"
+    # The legend is one line; a sheet of few tiles is widened to hold it.
+    legend_w = 8 + sum(30 + 8 * len(p) for p in style_set.vocabulary.parts) + 20 + 7 * len(title)
+    width = max(columns * tile_px, legend_w)
+    sheet = Image.new("RGB", (width, rows * (tile_px + caption_px) + legend_px), (255, 255, 255))
     draw = ImageDraw.Draw(sheet)
     x = 8
     for i, part in enumerate(style_set.vocabulary.parts):
         draw.rectangle([x, 8, x + 14, 22], fill=part_rgb(i + 1))
         draw.text((x + 18, 9), part, fill=(0, 0, 0), font=font)
         x += 30 + 8 * len(part)
-    draw.text((x + 20, 9), f"set '{style_set.name}': {n} exemplars at {style_set.resolution}^3",
-              fill=(0, 0, 0), font=font)
+    draw.text((x + 20, 9), title, fill=(0, 0, 0), font=font)
     for i, ex in enumerate(style_set.exemplars):
         r, c = divmod(i, columns)
         left, top = c * tile_px, legend_px + r * (tile_px + caption_px)
@@ -97,3 +100,57 @@ def contact_sheet(style_set: StyleSet, tile_px: int = 320, columns: int = 8) -> 
         draw.text((left + 6, top + tile_px + 17), f"{ex.category}  detail x{ratio:.2f}", fill=(90, 90, 90),
                   font=font)
     return sheet
+
+
+#: PNG text chunk holding the inputs hash of the set a sheet was drawn from (so an up-to-date sheet is kept).
+SHEET_HASH_KEY = "decollage-style-set"
+
+
+def _code_hash() -> str:
+    """sha256 (16 hex digits) of the code that draws sheets: a new renderer redraws old sheets."""
+    import hashlib
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parent
+    return hashlib.sha256((here / "style_sheet.py").read_bytes() + (here / "preview.py").read_bytes()).hexdigest()[:16]
+
+
+def sheet_path(style_set: StyleSet) -> "Path":
+    """Default sheet file: ``<name>.png`` next to the set file."""
+    from pathlib import Path
+
+    if style_set.path is None:
+        raise ValueError("the style set was not loaded from a file")
+    return Path(style_set.path).with_name(f"{style_set.name}.png")
+
+
+def write_contact_sheet(style_set: StyleSet, path: "Path | None" = None, force: bool = False) -> tuple["Path", bool]:
+    """Write the set's contact sheet PNG (default ``sheet_path``); returns (path, written).
+
+    The PNG records the set's inputs hash (and this renderer's code hash); an
+    existing sheet with the same record is kept (written False) unless ``force``. Written atomically (ExportError).
+    """
+    import io
+    from pathlib import Path
+
+    from PIL import Image, PngImagePlugin
+
+    from pipeline.export import ensure_writable_dir, write_bytes_atomic
+
+    path = Path(path) if path is not None else sheet_path(style_set)
+    stamp = f"{style_set.name}:{style_set.inputs_hash}:{_code_hash()}"
+    if not force and path.is_file():
+        try:
+            with Image.open(path) as old:
+                if getattr(old, "text", {}).get(SHEET_HASH_KEY) == stamp:
+                    return path, False
+        except (OSError, ValueError):
+            pass  # unreadable: redraw
+    info = PngImagePlugin.PngInfo()
+    info.add_text(SHEET_HASH_KEY, stamp)
+    buffer = io.BytesIO()
+    contact_sheet(style_set).save(buffer, format="PNG", pnginfo=info)
+    if str(path.parent):
+        ensure_writable_dir(path.parent)
+    write_bytes_atomic(path, buffer.getvalue())
+    return path, True

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pipeline.errors import SourceError
-from pipeline.recipe import MeshSource, PartsFrom
+from pipeline.recipe import MeshSource, PartsFrom, UpAxis
 from sources.base import PartMeshes
 from sources.frames import transform_mesh
 
@@ -74,6 +74,28 @@ def load(spec: MeshSource, base_dir: Path) -> PartMeshes:
         raise SourceError("mesh has no faces", field="path",
                           hint="every face is degenerate; check the file in a mesh viewer")
     return PartMeshes(parts=parts, warnings=warnings, input_files=[path])
+
+
+def read_named_parts(path: Path, up_axis: UpAxis | str = UpAxis.Y) -> list[tuple[str, "trimesh.Trimesh"]]:
+    """Every mesh instance of ``path`` as (sanitised node/group name, cleaned mesh, +Y up), sorted by name.
+
+    Unlike ``load``, a file with a single instance keeps that instance's own
+    name (a one-node GLB's node, an OBJ's only group); only a file with no
+    names at all (STL, PLY, OFF, an OBJ without ``o``/``g``) gives its file
+    stem. Names are not made unique: equal names are returned as separate
+    entries. Units are left as they are. Raises ``SourceError`` like ``load``.
+    """
+    path = Path(path)
+    ext = path.suffix.lower().lstrip(".")
+    raw = _read_instances(path, ext)
+    if not raw:
+        raise SourceError("mesh has no faces", field="path",
+                          hint="the file holds only points or lines; export the surface as triangles")
+    out = []
+    for original, mesh in sorted(raw, key=lambda item: item[0]):
+        name = sanitize_name(original)
+        out.append((name, transform_mesh(_clean(mesh, name), up_axis, 1.0)))
+    return out
 
 
 def resolve_path(relative: str, base_dir: Path) -> Path:
