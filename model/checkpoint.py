@@ -8,6 +8,8 @@ file never runs code from it):
 - ``"meta"``: a JSON string with the ``ModelConfig`` dict, ``style_names``,
   ``part_names``, ``style_parts`` (for each style exemplar, the part names it
   has) and ``training`` metadata (step, seed, command, wall time, machine...);
+  optionally ``part_aliases`` (a category's own name for a part → the part,
+  e.g. ``roof → top``) and ``style_categories`` (per style, e.g. ``building``);
 - ``"generator"``: the generator's state dict (CPU, contiguous tensors);
 - optionally ``"discriminators"``, ``"optimizers"`` (name → optimizer state
   dict) and ``"rng"`` (name → state tensor), only needed to resume training.
@@ -58,6 +60,9 @@ class Checkpoint:
         discriminators: discriminators' state dict, or None (inference-only file).
         optimizers: name → optimizer state dict, or None.
         rng: name → RNG state tensor (e.g. ``"torch"``), or None.
+        part_aliases: other accepted names of parts (alias → a name in ``part_names``),
+            e.g. ``{"body": "bottom", "roof": "top"}`` for the "things" set.
+        style_categories: (N,) category of each style exemplar, or () when unknown.
     """
 
     config: ModelConfig
@@ -69,9 +74,18 @@ class Checkpoint:
     discriminators: dict[str, Any] | None = None
     optimizers: dict[str, Any] | None = None
     rng: dict[str, Any] | None = None
+    part_aliases: dict[str, str] = field(default_factory=dict)
+    style_categories: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         _check_vocab(self.config, self.style_names, self.part_names, self.style_parts)
+        _check_aliases(self.part_names, self.part_aliases, self.style_names, self.style_categories)
+
+    def part_index(self) -> dict[str, int]:
+        """Every accepted part name (vocabulary and aliases) → its part channel."""
+        index = {n: i for i, n in enumerate(self.part_names)}
+        index.update({a: index[p] for a, p in self.part_aliases.items()})
+        return index
 
     def meta(self) -> dict[str, Any]:
         """The JSON part of the file (everything but tensors)."""
@@ -81,6 +95,8 @@ class Checkpoint:
             "part_names": list(self.part_names),
             "style_parts": [list(p) for p in self.style_parts],
             "training": self.training,
+            "part_aliases": dict(sorted(self.part_aliases.items())),
+            "style_categories": list(self.style_categories),
         }
 
 
@@ -203,7 +219,8 @@ def _from_raw(raw: dict[str, Any], path: Path, training_state: bool) -> Checkpoi
     except json.JSONDecodeError as exc:
         raise DetailizeError(f"checkpoint metadata is not valid JSON ({exc.msg})", file=path,
                              hint="re-train or re-download it") from None
-    if not isinstance(meta, dict) or set(meta) != {"config", "style_names", "part_names", "style_parts", "training"}:
+    required = {"config", "style_names", "part_names", "style_parts", "training"}
+    if not isinstance(meta, dict) or not required <= set(meta) <= required | {"part_aliases", "style_categories"}:
         raise DetailizeError("checkpoint metadata lacks or adds entries", file=path, field="meta",
                              hint="re-train or re-download it")
     try:
@@ -221,6 +238,11 @@ def _from_raw(raw: dict[str, Any], path: Path, training_state: bool) -> Checkpoi
     if not isinstance(sp, list) or not all(isinstance(p, list) and all(isinstance(x, str) for x in p) for p in sp):
         raise DetailizeError("style_parts must be a list of lists of part names", file=path, field="style_parts",
                              hint="re-train it")
+    aliases, categories = meta.get("part_aliases", {}), meta.get("style_categories", [])
+    if not isinstance(aliases, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in aliases.items()) \
+            or not isinstance(categories, list) or not all(isinstance(c, str) for c in categories):
+        raise DetailizeError("part_aliases / style_categories are malformed", file=path, field="meta",
+                             hint="re-train it")
     if not isinstance(meta["training"], dict):
         raise DetailizeError("training metadata must be an object", file=path, field="training", hint="re-train it")
     for key in ("generator", "discriminators"):
@@ -237,6 +259,8 @@ def _from_raw(raw: dict[str, Any], path: Path, training_state: bool) -> Checkpoi
             discriminators=raw.get("discriminators") if training_state else None,
             optimizers=raw.get("optimizers") if training_state else None,
             rng=raw.get("rng") if training_state else None,
+            part_aliases=aliases,
+            style_categories=tuple(categories),
         )
     except DetailizeError as err:
         err.file = str(path)
@@ -262,6 +286,17 @@ def _check_vocab(cfg: ModelConfig, styles: tuple[str, ...], parts: tuple[str, ..
         if unknown:
             raise DetailizeError(f"style {styles[i]!r} lists unknown parts {unknown}", field=f"style_parts[{i}]",
                                  hint=f"use part names from {list(parts)}")
+
+
+def _check_aliases(parts: tuple[str, ...], aliases: dict[str, str], styles: tuple[str, ...],
+                   categories: tuple[str, ...]) -> None:
+    bad = sorted(a for a, p in aliases.items() if p not in parts or a in parts)
+    if bad:
+        raise DetailizeError(f"part aliases {bad} name unknown parts or shadow a part name", field="part_aliases",
+                             hint=f"map other names onto {list(parts)}")
+    if categories and len(categories) != len(styles):
+        raise DetailizeError(f"{len(categories)} style categories for {len(styles)} styles", field="style_categories",
+                             hint="give one category per style, or none")
 
 
 def expected_shapes(cfg: ModelConfig) -> tuple[dict[str, tuple[int, ...]], dict[str, tuple[int, ...]]]:

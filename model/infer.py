@@ -104,9 +104,10 @@ class DecollageDetailizer:
         ckpt: Checkpoint = load_checkpoint(self.checkpoint_path)
         self.ckpt = ckpt
         self.style_names: tuple[str, ...] | None = ckpt.style_names
-        self.part_names: tuple[str, ...] | None = ckpt.part_names
+        # Accepted part names: the vocabulary, then its aliases (a building's "roof" is the set's "top").
+        self.part_names: tuple[str, ...] | None = tuple(ckpt.part_index())
         self._style_index = {n: i for i, n in enumerate(ckpt.style_names)}
-        self._part_index = {n: i for i, n in enumerate(ckpt.part_names)}
+        self._part_index = ckpt.part_index()  # vocabulary names and their aliases (roof → top)
         gen = Generator(ckpt.config)
         gen.load_state_dict(ckpt.generator)  # shapes/keys already checked by load_checkpoint
         gen.eval().requires_grad_(False)

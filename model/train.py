@@ -307,13 +307,15 @@ class SampleView:
 class Trainer:
     """Networks, optimizers and the three steps of an iteration, on one device."""
 
-    def __init__(self, exemplars: Sequence[Exemplar], cfg: ModelConfig, tcfg: TrainConfig) -> None:
+    def __init__(self, exemplars: Sequence[Exemplar], cfg: ModelConfig, tcfg: TrainConfig,
+                 part_aliases: dict[str, str] | None = None) -> None:
         import torch
 
         from model.infer import cpu_threads, resolve_device
         from model.networks import Generator, build_discriminators
 
         self.exemplars, self.cfg, self.tcfg, self.aug = list(exemplars), cfg, tcfg, tcfg.augment()
+        self.part_aliases = dict(part_aliases or {})
         self.device = resolve_device(tcfg.device)
         if self.device.type == "cpu":
             torch.set_num_threads(cpu_threads())
@@ -462,6 +464,8 @@ class Trainer:
             discriminators=self.discs.state_dict() if full else None,
             optimizers={"g": self.opt_g.state_dict(), "d": self.opt_d.state_dict()} if full else None,
             rng={"torch": torch.get_rng_state()} if full else None,
+            part_aliases=self.part_aliases,
+            style_categories=tuple(e.category for e in ex),
         )
 
     def restore(self, path: Path) -> None:
@@ -519,12 +523,14 @@ def train(
     tcfg: TrainConfig,
     *,
     resume: bool = True,
+    part_aliases: dict[str, str] | None = None,
     progress: Callable[[int, int, dict[str, float]], None] | None = None,
 ) -> TrainResult:
     """Train (or continue training) up to ``tcfg.steps`` iterations; see the module docstring.
 
     Args:
         exemplars: the style set (``n_styles`` exemplars sharing ``n_parts`` part names).
+        part_aliases: other accepted part names (alias → part), recorded in the checkpoints.
         progress: called after every iteration with (step, total, losses) — the CLI's progress bar.
     Raises:
         DetailizeError: inconsistent set/config, unusable resume checkpoint, unwritable folder,
@@ -533,7 +539,7 @@ def train(
     out = Path(tcfg.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     last, model_path, log_path = out / "last.pt", out / "model.pt", out / "log.jsonl"
-    trainer = Trainer(exemplars, cfg, tcfg)
+    trainer = Trainer(exemplars, cfg, tcfg, part_aliases)
     if resume and last.exists():
         trainer.restore(last)
     elif log_path.exists():

@@ -101,6 +101,15 @@ class Vocabulary:
                 return alias.index(part)
         raise KeyError(part)
 
+    def alias_map(self) -> dict[str, str]:
+        """Every unambiguous alias that is not itself a part name → its part (e.g. roof → top)."""
+        seen: dict[str, set[str]] = {}
+        for names in self.aliases.values():
+            for alias, part in zip(names, self.parts):
+                if alias != part and alias not in self.parts:
+                    seen.setdefault(alias, set()).add(part)
+        return {a: next(iter(p)) for a, p in sorted(seen.items()) if len(p) == 1}
+
     def accepted(self) -> list[str]:
         """Every accepted part name, sorted."""
         return sorted(set(self.parts).union(*[set(a) for a in self.aliases.values()]))

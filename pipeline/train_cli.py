@@ -105,7 +105,8 @@ def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_e
 
     with bar:
         task = bar.add_task("train", total=steps, losses="")
-        result = train(exemplars, cfg, tcfg, resume=resume, progress=progress)
+        result = train(exemplars, cfg, tcfg, resume=resume, part_aliases=sset.vocabulary.alias_map(),
+                       progress=progress)
     if not quiet:
         console.print(f"done: step {result.step}, {result.seconds_per_iteration:.2f} s/iteration; "
                       f"model {result.model}, log {result.log}")

@@ -197,3 +197,19 @@ def test_save_refuses_non_json_metadata_and_mismatched_state(tmp_path):
     assert not (tmp_path / "m.pt").exists()
     with pytest.raises(DetailizeError, match="unknown parts"):
         dataclasses.replace(ck, style_parts=(("body",), ("roof",), ()))
+
+
+def test_part_aliases_and_categories_round_trip(tmp_path):
+    ck = dataclasses.replace(_ckpt(), part_aliases={"roof": "top", "pot": "body"},
+                             style_categories=("building", "plant", "cake"))
+    back = load_checkpoint(save_checkpoint(tmp_path / "a.pt", ck))
+    assert back.part_aliases == {"pot": "body", "roof": "top"}
+    assert back.style_categories == ("building", "plant", "cake")
+    assert back.part_index() == {"body": 0, "top": 1, "roof": 1, "pot": 0}
+
+
+@pytest.mark.parametrize("aliases, categories", [({"roof": "lid"}, ()), ({"top": "body"}, ()),
+                                                 ({}, ("building",))])
+def test_bad_aliases_or_categories_refused(aliases, categories):
+    with pytest.raises(DetailizeError, match="alias|categor"):
+        dataclasses.replace(_ckpt(), part_aliases=aliases, style_categories=categories)

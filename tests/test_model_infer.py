@@ -87,6 +87,21 @@ def test_unknown_style_and_part_list_known(ckpt_path):
     det.detailize(_grid(style_names=("cake", "tower", "gothic")))
 
 
+def test_part_aliases_map_to_their_part(tmp_path):
+    cfg = ModelConfig.lean(2, len(STYLES)).scaled(0.125)
+    torch.manual_seed(0)
+    gen = Generator(cfg)
+    ck = Checkpoint(cfg, STYLES, ("bottom", "top"), (("bottom", "top"),) * 3, gen.state_dict(), {"step": 0},
+                    part_aliases={"body": "bottom", "roof": "top"})
+    det = DecollageDetailizer(str(save_checkpoint(tmp_path / "a.pt", ck)), device="cpu")
+    assert det.part_names == ("bottom", "top", "body", "roof")
+    g = _grid(part_names=("roof", "body"))
+    canonical = LabeledGrid(g.occupancy, g.part, g.style, ("top", "bottom"), g.style_names, g.voxel_size_m)
+    assert np.array_equal(det.detailize(g).occupancy, det.detailize(canonical).occupancy)
+    with pytest.raises(DetailizeError, match=r"unknown part 'leaf' \(known: bottom, top, body, roof\)"):
+        det.detailize(_grid(part_names=("leaf", "body")))
+
+
 def test_deterministic_and_describe(ckpt_path):
     det = DecollageDetailizer(ckpt_path, device="cpu")
     g = _grid()
