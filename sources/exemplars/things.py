@@ -192,9 +192,25 @@ def cottage(width: float = 1.1, depth: float = 0.8, wall_h: float = 0.6, seed: i
         body += _window(w / 2, h * 0.55, s * 0.18, 0.16, 0.2, "x", mullions=(2, 2))
         # Flower boxes under the front windows.
         body.append(box((0.2, 0.04, 0.05), (s * 0.32, h * 0.55 - 0.15, d / 2 + 0.04)))
+    # Half-timbering: posts, a mid rail and diagonal braces on every wall.
+    tt = 0.025
+    for zf in (-1, 1):
+        zz = zf * (d / 2 + tt / 2)
+        for xf in np.linspace(-w / 2 + 0.02, w / 2 - 0.02, 7):
+            body.append(box((tt, h - 0.08, tt), (xf, 0.08 + (h - 0.08) / 2, zz)))
+        body.append(box((w, tt, tt), (0, h * 0.35, zz)))
+        body.append(box((w, tt, tt), (0, h - tt / 2, zz)))
+        for x0 in (-w / 2 + 0.02, w / 2 - 0.02):
+            x1 = x0 * 0.68
+            body.append(bar((x0, h * 0.36, zz), (x1, h - 0.02, zz), tt, tt))
+    for xf in (-1, 1):
+        xx = xf * (w / 2 + tt / 2)
+        for zc in np.linspace(-d / 2 + 0.02, d / 2 - 0.02, 5):
+            body.append(box((tt, h - 0.08, tt), (xx, 0.08 + (h - 0.08) / 2, zc)))
+        body.append(box((tt, tt, d), (xx, h * 0.35, 0)))
     rise = 0.45
     roof += _gable_roof(w, d, h, rise, 0.08, 0.03)
-    roof += _tiles_gable(w, d, h, rise, 0.08, 7, 0.018)
+    roof += _tiles_gable(w, d, h, rise, 0.08, 9, 0.022)
     # Chimney with cap.
     cx, cz = w * 0.28, -d * 0.18
     roof.append(box((0.12, 0.5, 0.12), (cx, h + 0.4, cz)))
@@ -252,8 +268,12 @@ def tower(radius: float = 0.4, height: float = 1.0, merlons: int = 12, seed: int
     r, h = radius, height
     body.append(lathe([(r * 1.15, 0), (r, h * 0.15), (r, h)]))
     body += [torus((0, h * f, 0), r * 1.0, 0.018) for f in (0.15, 0.45, 0.75)]
+    # Masonry courses: thin rings every few centimetres, staggered vertical joints between them.
+    body += [torus((0, h * 0.15 + 0.05 * i, 0), r * 0.995, 0.008, 32) for i in range(int(h * 0.85 / 0.05))]
+    body += [torus((0, 0.03 + 0.045 * i, 0), r * 1.15 - 0.15 * r * (0.03 + 0.045 * i) / (h * 0.15), 0.009, 32)
+             for i in range(int(h * 0.15 / 0.045))]
     # Arrow slits: protruding frames around narrow slits.
-    for k, yf in enumerate((0.3, 0.6)):
+    for k, yf in enumerate((0.3, 0.5, 0.7)):
         for a in range(4):
             ang = math.radians(45 * (a * 2 + k))
             cx, cz = r * math.cos(ang), r * math.sin(ang)
@@ -263,6 +283,12 @@ def tower(radius: float = 0.4, height: float = 1.0, merlons: int = 12, seed: int
                 body.append(_slab((cx + side[0] * 0.035 * sgn + d[0] * 0.01, h * yf,
                                    cz + side[2] * 0.035 * sgn + d[2] * 0.01), [0, 1, 0], side, 0.18, 0.025, 0.04))
             body.append(_slab((cx + d[0] * 0.01, h * yf + 0.1, cz + d[2] * 0.01), [0, 1, 0], side, 0.03, 0.1, 0.05))
+    # Buttresses: thin radial fins stepping in towards the top.
+    for i in range(8):
+        a = math.radians(22.5 + 45 * i)
+        c, s_ = math.cos(a), math.sin(a)
+        body.append(hull(np.array([[rr * c + e * -s_ * 0.02, y, rr * s_ + e * c * 0.02] for e in (-1, 1)
+                                   for rr, y in ((r * 0.9, 0), (r * 1.35, 0), (r * 1.05, h * 0.4), (r * 0.9, h * 0.45))])))
     # Door.
     body.append(_slab((0, 0.16, r * 1.1), [0, 1, 0], [1, 0, 0], 0.3, 0.2, 0.04))
     body += [_slab((s * 0.11, 0.17, r * 1.1), [0, 1, 0], [1, 0, 0], 0.34, 0.03, 0.07) for s in (-1, 1)]
@@ -272,7 +298,8 @@ def tower(radius: float = 0.4, height: float = 1.0, merlons: int = 12, seed: int
     body += ring_of(merlons, r * 1.05, lambda x, z, a: box((0.1, 0.1, 0.07), (x, h + 0.15, z), -a))
     # Conical roof rising from inside the parapet, with a band and a finial.
     roof.append(lathe([(r * 0.92, h + 0.05), (r * 0.88, h + 0.1), (0.02, h + 0.75)]))
-    roof += [torus((0, h + 0.1 + 0.13 * i, 0), r * 0.88 * (1 - 0.19 * i) + 0.005, 0.014) for i in range(4)]
+    roof += [torus((0, h + 0.1 + 0.055 * i, 0), (r * 0.88 - 0.02) * (1 - 0.0846 * i) + 0.012, 0.012, 32)
+             for i in range(11)]
     roof.append(rod((0, h + 0.7, 0), (0, h + 0.9, 0), 0.015))
     roof.append(sphere((0, h + 0.9, 0), 0.03))
     return {"body": body, "roof": roof}
@@ -303,6 +330,25 @@ def townhouse(width: float = 1.0, depth: float = 0.6, floors: int = 3, bays: int
                              0.007, 6) for k in range(-2, 3)]
         body += _window(w / 2, y, 0, 0.16, 0.2, "x", mullions=(2, 2))
         body += _window(-w / 2, y, 0, 0.16, 0.2, "x", mullions=(2, 2))
+    # Pilasters between the bays and quoins at the corners.
+    for b in range(bays + 1):
+        x = -w / 2 + w * b / bays
+        x = float(np.clip(x, -w / 2 + 0.025, w / 2 - 0.025))
+        body.append(box((0.05, h - 0.1, 0.025), (x, 0.1 + (h - 0.1) / 2, d / 2 + 0.012)))
+        body.append(box((0.07, 0.03, 0.04), (x, h - 0.05, d / 2 + 0.02)))
+    for sx in (-1, 1):
+        for sz in (-1, 1):
+            for i in range(int(h / 0.08)):
+                body.append(box((0.06 if i % 2 else 0.035, 0.05, 0.035 if i % 2 else 0.06),
+                                (sx * (w / 2 - 0.01), 0.04 + 0.08 * i, sz * (d / 2 - 0.01))))
+    # Iron railings along the front area, with spear-head finials.
+    for s in (-1, 1):
+        x0, x1 = s * 0.2, s * (w / 2)
+        body.append(bar((x0, 0.2, d / 2 + 0.12), (x1, 0.2, d / 2 + 0.12), 0.012, 0.012))
+        for i in range(9):
+            x = x0 + (x1 - x0) * i / 8
+            body.append(rod((x, 0, d / 2 + 0.12), (x, 0.22, d / 2 + 0.12), 0.006, 6))
+            body.append(sphere((x, 0.23, d / 2 + 0.12), 0.011, (1, 1.6, 1), subdivisions=1))
     # Door with pediment and steps.
     body.append(box((0.18, 0.3, 0.03), (0, 0.1 + 0.15, d / 2)))
     body += [box((0.03, 0.32, 0.05), (s * 0.11, 0.1 + 0.16, d / 2)) for s in (-1, 1)]
@@ -394,12 +440,12 @@ def barn(width: float = 1.2, depth: float = 0.8, wall_h: float = 0.5, seed: int 
     body, roof = [], []
     w, d, h = width, depth, wall_h
     body.append(box((w, h, d), (0, h / 2, 0)))
-    for i in range(22):
-        x = -w / 2 + w * (i + 0.5) / 22
-        body += [box((0.018, h, 0.015), (x, h / 2, s * (d / 2 + 0.007))) for s in (-1, 1)]
-    for i in range(14):
-        z = -d / 2 + d * (i + 0.5) / 14
-        body += [box((0.015, h, 0.018), (s * (w / 2 + 0.007), h / 2, z)) for s in (-1, 1)]
+    for i in range(30):
+        x = -w / 2 + w * (i + 0.5) / 30
+        body += [box((0.016, h, 0.02), (x, h / 2, s * (d / 2 + 0.007))) for s in (-1, 1)]
+    for i in range(20):
+        z = -d / 2 + d * (i + 0.5) / 20
+        body += [box((0.02, h, 0.016), (s * (w / 2 + 0.007), h / 2, z)) for s in (-1, 1)]
     # Double doors with X bracing and frame.
     dz = d / 2 + 0.025
     for s in (-1, 1):
@@ -409,6 +455,15 @@ def barn(width: float = 1.2, depth: float = 0.8, wall_h: float = 0.5, seed: int 
         body += [box((0.025, 0.38, 0.03), (cx + e * 0.09, 0.19, dz + 0.01)) for e in (-1, 1)]
         body.append(bar((cx - 0.085, 0.03, dz + 0.02), (cx + 0.085, 0.35, dz + 0.02), 0.025, 0.02))
         body.append(bar((cx + 0.085, 0.03, dz + 0.02), (cx - 0.085, 0.35, dz + 0.02), 0.025, 0.02))
+    for s in (-1, 1):
+        for zc in (-0.2, 0.2):
+            body += _window(s * (w / 2 + 0.02), h * 0.55, zc, 0.14, 0.14, "x", t=0.02, mullions=(2, 2))
+    body += [box((w + 0.04, 0.03, d + 0.04), (0, y, 0)) for y in (0.015, h - 0.015)]
+    # Porch roof on posts over the doors.
+    body += [rod((s * 0.3, 0, d / 2 + 0.22), (s * 0.3, h * 0.9, d / 2 + 0.22), 0.014, 8) for s in (-1, 1)]
+    body += [bar((s * 0.3, h * 0.7, d / 2 + 0.22), (s * 0.3, h * 0.88, d / 2 + 0.02), 0.02, 0.02) for s in (-1, 1)]
+    roof.append(hull(np.array([[s * 0.36, h * 0.92 + e, d / 2 + z] for s in (-1, 1) for e in (0, 0.02)
+                               for z in (0.0, 0.27)]) + np.array([0, 0, 0])))
     # Gambrel roof: a lower steep and an upper shallow slope.
     over = 0.05
     hd = d / 2 + over
@@ -422,8 +477,8 @@ def barn(width: float = 1.2, depth: float = 0.8, wall_h: float = 0.5, seed: int 
     body += [box((0.2, 0.025, 0.04), (0, h + 0.15 + e * 0.09, d / 2 + 0.015)) for e in (-1, 1)]
     body.append(bar((-0.07, h + 0.07, d / 2 + 0.03), (0.07, h + 0.23, d / 2 + 0.03), 0.02, 0.02))
     # Standing-seam ribs on the roof: rods following the gambrel profile.
-    for i in range(13):
-        x = -w / 2 - over + (w + 2 * over) * (i + 0.5) / 13
+    for i in range(22):
+        x = -w / 2 - over + (w + 2 * over) * (i + 0.5) / 22
         for (z0, y0), (z1, y1) in zip(prof[:-1], prof[1:]):
             roof.append(rod((x, y0 + 0.012, z0), (x, y1 + 0.012, z1), 0.011, 6))
     # Cupola on the ridge.
@@ -511,11 +566,11 @@ def cactus(height: float = 0.8, ribs: int = 10, arms: int = 2, seed: int = 13) -
             a = 2 * math.pi * k / ribs
             off = (s * math.cos(a) + n * math.sin(a)) * radius * 0.92
             out.append(rod(np.asarray(p0) + off, np.asarray(p1) + off, radius * 0.2, 6))
-            if k % 2 == 0:
+            if True:
                 for j in range(n_spines):
                     t = (j + 0.5) / n_spines
                     q = np.asarray(p0) + (np.asarray(p1) - np.asarray(p0)) * t + off * 1.15
-                    out.append(rod(q, q + off / np.linalg.norm(off) * 0.035 + d * 0.01, 0.0035, 4))
+                    out.append(rod(q, q + off / np.linalg.norm(off) * 0.045 + d * 0.015, 0.0055, 4))
         return out
 
     top = np.array([0, y0 + height, 0])
@@ -547,9 +602,10 @@ def tree(height: float = 0.9, depth: int = 3, seed: int = 14) -> dict:
         leaf.append(rod(p, q, radius, 10))
         leaf.append(sphere(q, radius))
         if level == 0:
-            for _ in range(14):
-                v = rng.normal(size=3)
-                leaf.append(_leaf(q + v / np.linalg.norm(v) * 0.04, v + [0, 0.8, 0], 0.06, 0.035, 0.008))
+            for _ in range(30):
+                v = rng.normal(size=3) * np.array([1, 0.4, 1])
+                leaf.append(_leaf(q + v / np.linalg.norm(v) * 0.07 * rng.uniform(0.3, 1), v + [0, 0.6, 0], 0.07,
+                                  0.04, 0.01))
             return
         for k in range(2 if level < depth else 3):
             a = rng.uniform(0, 2 * math.pi)
@@ -617,8 +673,16 @@ def flowers(stems: int = 7, seed: int = 16) -> dict:
         for i in range(12):
             ang = 2 * math.pi * i / 12
             pd = s * math.cos(ang) + n * math.sin(ang) + d * 0.15
-            leaf.append(_leaf(top, pd, 0.075, 0.028, 0.007))
-        leaf.append(sphere(top + d * 0.01, 0.024, (1, 0.7, 1)))
+            leaf.append(_leaf(top, pd, 0.085, 0.032, 0.01))
+            leaf.append(_leaf(top - d * 0.01, pd * 0.8 + d * 0.5, 0.06, 0.025, 0.01))
+        leaf.append(sphere(top + d * 0.01, 0.03, (1, 0.7, 1)))
+    # Basal clump of long strap leaves arching out of the pot.
+    for i in range(14):
+        a = 2 * math.pi * i / 14 + rng.uniform(-0.2, 0.2)
+        p0 = np.array([0.06 * math.cos(a), 0.28, 0.06 * math.sin(a)])
+        p1 = p0 + np.array([0.12 * math.cos(a), 0.2, 0.12 * math.sin(a)])
+        leaf.append(_leaf(p0, p1 - p0, 0.24, 0.05, 0.01, curl=0.15))
+        leaf.append(_leaf(p1, [math.cos(a), -0.2, math.sin(a)], 0.14, 0.045, 0.01, curl=0.15))
     return {"pot": pot, "leaf": leaf}
 
 
@@ -646,15 +710,38 @@ def _strawberry(x: float, y: float, z: float, size: float, tilt: float = 0.0) ->
     return out
 
 
+def _stand(radius: float, height: float) -> list:
+    """Cake stand: a thin plate with a beaded edge on a turned stem and foot; the cake sits at ``height``."""
+    r, h = radius, height
+    out = [lathe([(r, h - 0.025), (r, h)], sections=48),
+           lathe([(r * 0.45, 0), (r * 0.45, 0.02), (0.06, 0.05), (0.04, h * 0.4), (0.07, h * 0.5), (0.04, h * 0.6),
+                  (0.05, h - 0.02)], sections=24)]
+    out += _beads(h - 0.02, r, 0.016)
+    return out
+
+
 def birthday_cake(radius: float = 0.45, seed: int = 21) -> dict:
     """Birthday cake: two tiers with bead borders, icing drips round the top tier's edge, candles with flames."""
     r = radius
-    bottom = [lathe([(r, 0), (r, 0.3)], sections=48), lathe([(r + 0.04, -0.03), (r + 0.04, 0.0)], sections=48)]
+    rng_s = np.random.default_rng(seed + 100)
+    bottom = [lathe([(r, 0), (r, 0.3)], sections=48)]
     bottom += _beads(0.01, r + 0.005, 0.025)
+    # Vertical piped ridges all round the sides of both tiers.
+    bottom += ring_of(64, r, lambda x, z, a: rod((x, 0.03, z), (x, 0.28, z), 0.015, 6))
     top = _beads(0.3, r * 0.98, 0.022)
     r2 = r * 0.65
     top.append(lathe([(r2, 0.3), (r2, 0.55)], sections=48))
     top += _beads(0.31, r2 + 0.005, 0.02)
+    top += ring_of(36, r2, lambda x, z, a: rod((x, 0.33, z), (x, 0.45, z), 0.01, 6))
+    # Sprinkles on both tops.
+    for _ in range(160):
+        rr, aa = rng_s.uniform(0, 1), rng_s.uniform(0, 2 * math.pi)
+        lower = rr > 0.45
+        rad = (r2 + 0.03 + (r - r2 - 0.06) * rng_s.uniform()) if lower else r2 * 0.9 * math.sqrt(rr / 0.45)
+        y = 0.305 if lower else 0.585
+        x, z = rad * math.cos(aa), rad * math.sin(aa)
+        b = rng_s.uniform(0, math.pi)
+        top.append(rod((x, y, z), (x + 0.03 * math.cos(b), y + 0.004, z + 0.03 * math.sin(b)), 0.007, 5))
     top.append(lathe([(r2 + 0.015, 0.53), (r2 + 0.015, 0.57), (0, 0.58)], sections=48))  # icing cap
     # Drips.
     rng = np.random.default_rng(seed)
@@ -665,10 +752,14 @@ def birthday_cake(radius: float = 0.45, seed: int = 21) -> dict:
         top.append(rod((x, 0.56, z), (x, 0.56 - ln, z), 0.013, 8))
         top.append(sphere((x, 0.56 - ln, z), 0.018, subdivisions=1))
     # Candles: striped sticks with a wick and a flame.
-    for x, z, a in ring_of(7, r2 * 0.6, lambda x, z, a: (x, z, a)):
-        top.append(rod((x, 0.57, z), (x, 0.77, z), 0.016, 10))
-        top += [torus((x, 0.6 + 0.045 * k, z), 0.017, 0.005, 10) for k in range(4)]
-        top.append(sphere((x, 0.82, z), 0.02, (0.8, 1.7, 0.8)))
+    for x, z, a in ring_of(9, r2 * 0.65, lambda x, z, a: (x, z, a)):
+        top.append(rod((x, 0.57, z), (x, 0.85, z), 0.016, 10))
+        top += [torus((x, 0.6 + 0.045 * k, z), 0.017, 0.005, 10) for k in range(6)]
+        top.append(sphere((x, 0.9, z), 0.02, (0.8, 1.7, 0.8)))
+    # Raise everything onto a cake stand (part of the bottom).
+    for m in bottom + top:
+        m.apply_translation([0, 0.3, 0])
+    bottom += _stand(r + 0.06, 0.3)
     return {"bottom": bottom, "top": top}
 
 
@@ -682,6 +773,9 @@ def wedding_cake(tiers: int = 3, radius: float = 0.5, seed: int = 22) -> dict:
     for k in range(tiers):
         part = bottom if k == 0 else top
         part.append(lathe([(r, y), (r, y + th)], sections=48))
+        # Ruffles: stacked thin rings round the tier's lower half.
+        part += [torus((0, y + 0.04 + 0.028 * i, 0), r + 0.004, 0.01, 40) for i in range(4)]
+        part += ring_of(40, r + 0.004, lambda x, z, a, y=y, th=th: rod((x, y + th * 0.85, z), (x, y + th, z), 0.008, 5))
         part += _beads(y + 0.015, r + 0.005, 0.018)
         top_border = _beads(y + th, r - 0.005, 0.016)
         top += top_border
@@ -697,6 +791,12 @@ def wedding_cake(tiers: int = 3, radius: float = 0.5, seed: int = 22) -> dict:
             part.append(sphere(((r + 0.01) * math.cos(a), y + th * 0.82, (r + 0.01) * math.sin(a)), 0.025,
                                subdivisions=1))
         y += th
+        if k < tiers - 1:
+            # Separator plate on pillars: the next tier floats above this one.
+            top += ring_of(6, r * 0.45, lambda x, z, a, y=y: lathe([(0.02, 0), (0.014, 0.03), (0.012, 0.12),
+                                                                    (0.02, 0.15)], (x, y, z), sections=12))
+            top.append(lathe([(r * 0.62, y + 0.15), (r * 0.62, y + 0.165)], sections=40))
+            y += 0.165
         r *= 0.68
         th *= 0.92
     # Sugar roses on the top and a heart topper.
@@ -718,17 +818,24 @@ def shortcake(radius: float = 0.5, seed: int = 23) -> dict:
     bottom = [lathe([(r, 0), (r, 0.4)], sections=48)]
     bottom += [torus((0, y, 0), r, 0.016, 48) for y in (0.13, 0.26)]
     bottom += ring_of(14, r, lambda x, z, a: sphere((x, 0.195, z), 0.035, (1, 1.3, 1), subdivisions=1))
+    # Ladyfinger biscuits standing round the side (a charlotte), with gaps between them.
+    bottom += ring_of(40, r + 0.025, lambda x, z, a: sphere((x, 0.24, z), 0.026, (1, 9.5, 1), subdivisions=1))
+    bottom += [torus((0, 0.12, 0), r + 0.055, 0.01, 48)]  # ribbon
     top = [lathe([(r + 0.005, 0.39), (r + 0.005, 0.42), (0, 0.425)], sections=48)]
     for x, z, _ in ring_of(10, r * 0.78, lambda x, z, a: (x, z, a)):
         top += _rosette(x, 0.42, z, 0.05)
         top += _strawberry(x, 0.46, z, 0.07)
     top += _strawberry(0, 0.42, 0, 0.12)
+    rng = np.random.default_rng(seed)
+    for _ in range(40):  # blueberries
+        rr, aa = r * 0.62 * math.sqrt(rng.uniform(0.1, 1)), rng.uniform(0, 2 * math.pi)
+        top.append(sphere((rr * math.cos(aa), 0.445, rr * math.sin(aa)), 0.022, subdivisions=1))
     top += [sphere((x, 0.43, z), 0.03, (1, 0.5, 1), subdivisions=1) for x, z, _ in
             ring_of(6, r * 0.35, lambda x, z, a: (x, z, a), start_deg=30)]
     return {"bottom": bottom, "top": top}
 
 
-def bundt_cake(radius: float = 0.5, flutes: int = 14, seed: int = 24) -> dict:
+def bundt_cake(radius: float = 0.5, flutes: int = 26, seed: int = 24) -> dict:
     """Bundt cake: a fluted ring (lathe body with rounded ridges) on a plate; thick glaze with long drips and
     cherries with stems on top."""
     rng = np.random.default_rng(seed)
@@ -739,8 +846,8 @@ def bundt_cake(radius: float = 0.5, flutes: int = 14, seed: int = 24) -> dict:
     for i in range(flutes):
         a = 2 * math.pi * i / flutes
         c, s = math.cos(a), math.sin(a)
-        bottom.append(rod((r * 1.0 * c, 0.03, r * 1.0 * s), (r * 0.98 * c, 0.14, r * 0.98 * s), 0.04, 10))
-        bottom.append(rod((r * 0.98 * c, 0.14, r * 0.98 * s), (r * 0.78 * c, 0.31, r * 0.78 * s), 0.035, 10))
+        bottom.append(rod((r * 1.0 * c, 0.03, r * 1.0 * s), (r * 0.98 * c, 0.14, r * 0.98 * s), 0.028, 8))
+        bottom.append(rod((r * 0.98 * c, 0.14, r * 0.98 * s), (r * 0.78 * c, 0.31, r * 0.78 * s), 0.02, 8))
     top = [torus((0, 0.33, 0), r * 0.68, 0.06, 48)]
     for i in range(flutes * 2):
         a = 2 * math.pi * (i + 0.5) / (flutes * 2)
@@ -750,10 +857,19 @@ def bundt_cake(radius: float = 0.5, flutes: int = 14, seed: int = 24) -> dict:
         p1 = np.array([r * (0.85 + 0.1 * ln) * c, 0.3 - 0.15 * ln, r * (0.85 + 0.1 * ln) * s])
         top.append(rod(p0, p1, 0.02, 8))
         top.append(sphere(p1, 0.026, subdivisions=1))
+    # Zig-zag drizzle across the ring.
+    for i in range(40):
+        a0, a1 = 2 * math.pi * i / 40, 2 * math.pi * (i + 1) / 40
+        r0, r1 = r * (0.52 if i % 2 else 0.84), r * (0.84 if i % 2 else 0.52)
+        top.append(rod((r0 * math.cos(a0), 0.4, r0 * math.sin(a0)), (r1 * math.cos(a1), 0.4, r1 * math.sin(a1)),
+                       0.01, 5))
     for x, z, a in ring_of(6, r * 0.68, lambda x, z, a: (x, z, a)):
-        top.append(sphere((x, 0.42, z), 0.05))
-        top.append(rod((x, 0.46, z), (x + 0.03, 0.56, z + 0.02), 0.006, 6))
-        top.append(_leaf((x + 0.03, 0.55, z + 0.02), [1, 0.3, 0.2], 0.05, 0.025, 0.006))
+        top.append(sphere((x, 0.44, z), 0.05))
+        top.append(rod((x, 0.48, z), (x + 0.03, 0.58, z + 0.02), 0.006, 6))
+        top.append(_leaf((x + 0.03, 0.57, z + 0.02), [1, 0.3, 0.2], 0.05, 0.025, 0.006))
+    for m in bottom + top:
+        m.apply_translation([0, 0.32, 0])
+    bottom += _stand(r + 0.12, 0.32)
     return {"bottom": bottom, "top": top}
 
 
@@ -793,7 +909,7 @@ def _rock_base(radius: float, height: float, rocks: int, rng, flat: float = 0.5)
     return out
 
 
-def crystal_cluster(count: int = 14, seed: int = 31) -> dict:
+def crystal_cluster(count: int = 24, seed: int = 31) -> dict:
     """Quartz cluster: long hexagonal points of several sizes fanning out from the centre of a rocky base."""
     rng = np.random.default_rng(seed)
     bottom = _rock_base(0.55, 0.22, 90, rng)
@@ -808,7 +924,7 @@ def crystal_cluster(count: int = 14, seed: int = 31) -> dict:
     return {"bottom": bottom, "top": top}
 
 
-def druse(count: int = 70, seed: int = 32) -> dict:
+def druse(count: int = 150, seed: int = 32) -> dict:
     """Druse: a broad dome of rock carpeted with many small stubby crystals pointing outwards from its surface."""
     rng = np.random.default_rng(seed)
     bottom = _rock_base(0.6, 0.35, 60, rng, flat=0.9)
