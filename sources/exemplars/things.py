@@ -261,7 +261,7 @@ def pagoda(tiers: int = 3, base: float = 1.1, seed: int = 2) -> dict:
     return {"body": body, "roof": roof}
 
 
-def tower(radius: float = 0.4, height: float = 1.0, merlons: int = 12, seed: int = 3) -> dict:
+def tower(radius: float = 0.4, height: float = 1.0, merlons: int = 16, seed: int = 3) -> dict:
     """Round castle tower: battered base, string courses, arrow-slit windows, machicolations, crenellations,
     and a conical roof with a finial."""
     body, roof = [], []
@@ -295,7 +295,7 @@ def tower(radius: float = 0.4, height: float = 1.0, merlons: int = 12, seed: int
     # Corbels and a projecting parapet with crenellations.
     body += ring_of(merlons * 2, r * 1.02, lambda x, z, a: box((0.04, 0.08, 0.04), (x, h + 0.0, z), -a))
     body.append(lathe([(r * 1.1, h + 0.04), (r * 1.1, h + 0.1)]))
-    body += ring_of(merlons, r * 1.05, lambda x, z, a: box((0.1, 0.1, 0.07), (x, h + 0.15, z), -a))
+    body += ring_of(merlons, r * 1.05, lambda x, z, a: box((0.08, 0.12, 0.06), (x, h + 0.16, z), -a))
     # Conical roof rising from inside the parapet, with a band and a finial.
     roof.append(lathe([(r * 0.92, h + 0.05), (r * 0.88, h + 0.1), (0.02, h + 0.75)]))
     roof += [torus((0, h + 0.1 + 0.055 * i, 0), (r * 0.88 - 0.02) * (1 - 0.0846 * i) + 0.012, 0.012, 32)
@@ -480,7 +480,7 @@ def barn(width: float = 1.2, depth: float = 0.8, wall_h: float = 0.5, seed: int 
     for i in range(22):
         x = -w / 2 - over + (w + 2 * over) * (i + 0.5) / 22
         for (z0, y0), (z1, y1) in zip(prof[:-1], prof[1:]):
-            roof.append(rod((x, y0 + 0.012, z0), (x, y1 + 0.012, z1), 0.011, 6))
+            roof.append(rod((x, y0 + 0.016, z0), (x, y1 + 0.016, z1), 0.013, 6))
     # Cupola on the ridge.
     roof.append(box((0.16, 0.14, 0.16), (0, h + 0.5, 0)))
     for s in (-1, 1):
@@ -727,12 +727,12 @@ def birthday_cake(radius: float = 0.45, seed: int = 21) -> dict:
     bottom = [lathe([(r, 0), (r, 0.3)], sections=48)]
     bottom += _beads(0.01, r + 0.005, 0.025)
     # Vertical piped ridges all round the sides of both tiers.
-    bottom += ring_of(64, r, lambda x, z, a: rod((x, 0.03, z), (x, 0.28, z), 0.015, 6))
+    bottom += ring_of(44, r + 0.012, lambda x, z, a: rod((x, 0.03, z), (x, 0.28, z), 0.016, 8))
     top = _beads(0.3, r * 0.98, 0.022)
     r2 = r * 0.65
     top.append(lathe([(r2, 0.3), (r2, 0.55)], sections=48))
     top += _beads(0.31, r2 + 0.005, 0.02)
-    top += ring_of(36, r2, lambda x, z, a: rod((x, 0.33, z), (x, 0.45, z), 0.01, 6))
+    top += ring_of(30, r2 + 0.012, lambda x, z, a: rod((x, 0.33, z), (x, 0.45, z), 0.014, 8))
     # Sprinkles on both tops.
     for _ in range(160):
         rr, aa = rng_s.uniform(0, 1), rng_s.uniform(0, 2 * math.pi)
@@ -774,7 +774,7 @@ def wedding_cake(tiers: int = 3, radius: float = 0.5, seed: int = 22) -> dict:
         part = bottom if k == 0 else top
         part.append(lathe([(r, y), (r, y + th)], sections=48))
         # Ruffles: stacked thin rings round the tier's lower half.
-        part += [torus((0, y + 0.04 + 0.028 * i, 0), r + 0.004, 0.01, 40) for i in range(4)]
+        part += [torus((0, y + 0.035 + 0.03 * i, 0), r + 0.006, 0.011, 40) for i in range(int((th - 0.06) / 0.03))]
         part += ring_of(40, r + 0.004, lambda x, z, a, y=y, th=th: rod((x, y + th * 0.85, z), (x, y + th, z), 0.008, 5))
         part += _beads(y + 0.015, r + 0.005, 0.018)
         top_border = _beads(y + th, r - 0.005, 0.016)
@@ -846,7 +846,7 @@ def bundt_cake(radius: float = 0.5, flutes: int = 26, seed: int = 24) -> dict:
     for i in range(flutes):
         a = 2 * math.pi * i / flutes
         c, s = math.cos(a), math.sin(a)
-        bottom.append(rod((r * 1.0 * c, 0.03, r * 1.0 * s), (r * 0.98 * c, 0.14, r * 0.98 * s), 0.028, 8))
+        bottom.append(rod(((r + 0.015) * c, 0.03, (r + 0.015) * s), ((r + 0.01) * c, 0.14, (r + 0.01) * s), 0.025, 8))
         bottom.append(rod((r * 0.98 * c, 0.14, r * 0.98 * s), (r * 0.78 * c, 0.31, r * 0.78 * s), 0.02, 8))
     top = [torus((0, 0.33, 0), r * 0.68, 0.06, 48)]
     for i in range(flutes * 2):
