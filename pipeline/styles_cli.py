@@ -36,9 +36,13 @@ _OUT_HELP = "Folder of set files (default: $DECOLLAGE_STYLES_DIR, else ~/.cache/
 
 
 def _console():
+    """stdout; piped output (logs, CI) gets wide rows instead of rich's default 80 columns."""
     from rich.console import Console
 
-    return Console(highlight=False, soft_wrap=True)
+    console = Console(highlight=False, soft_wrap=True)
+    if not console.is_terminal:
+        console.width = 160
+    return console
 
 
 def _progress(total: int, quiet: bool):
@@ -70,7 +74,7 @@ def _exemplar_table(style_set):
                         f"{style_set.resolution}³, vocabulary '{style_set.vocabulary.name}'{where}",
                   title_justify="left")
     for col in ("exemplar", "category", "parts (voxels)", "voxels", "detail", "source", "licence"):
-        table.add_column(col, justify="right" if col in ("voxels", "detail") else "left")
+        table.add_column(col, justify="right" if col in ("voxels", "detail") else "left", overflow="fold")
     for ex in style_set.exemplars:
         meta = ex.meta
         aliases = meta.get("part_aliases", {})

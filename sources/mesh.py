@@ -87,7 +87,9 @@ def read_named_parts(path: Path, up_axis: UpAxis | str = UpAxis.Y) -> list[tuple
     """
     path = Path(path)
     ext = path.suffix.lower().lstrip(".")
-    raw = _read_instances(path, ext)
+    # An OBJ with a single ``o``/``g`` keeps that name (trimesh would return a bare, unnamed mesh).
+    named_obj = ext == "obj" and _obj_options(path).get("split_groups", False)
+    raw = _read_instances(path, ext, force="scene" if named_obj else None)
     if not raw:
         raise SourceError("mesh has no faces", field="path",
                           hint="the file holds only points or lines; export the surface as triangles")
@@ -134,8 +136,12 @@ def unique_name(name: str, taken) -> str:
 # --------------------------------------------------------------------------- reading
 
 
-def _read_instances(path: Path, ext: str) -> list[tuple[str, "trimesh.Trimesh"]]:
-    """(name, mesh with world transform applied) for every triangle mesh instance in the file."""
+def _read_instances(path: Path, ext: str, force: str | None = None) -> list[tuple[str, "trimesh.Trimesh"]]:
+    """(name, mesh with world transform applied) for every triangle mesh instance in the file.
+
+    ``force="scene"`` keeps the node name of a file holding a single named mesh
+    (e.g. an OBJ with one ``g`` group) instead of naming it after the file stem.
+    """
     import trimesh
 
     try:
@@ -151,7 +157,7 @@ def _read_instances(path: Path, ext: str) -> list[tuple[str, "trimesh.Trimesh"]]
         _check_gltf_json(path)
     try:
         # process=False: _clean does the cleaning, and reports NaN vertices instead of dropping them.
-        loaded = trimesh.load(str(path), file_type=ext, force=None, process=False, **kwargs)
+        loaded = trimesh.load(str(path), file_type=ext, force=force, process=False, **kwargs)
         instances = _instances(loaded, path.stem)
     except SourceError:
         raise
