@@ -727,12 +727,12 @@ def birthday_cake(radius: float = 0.45, seed: int = 21) -> dict:
     bottom = [lathe([(r, 0), (r, 0.3)], sections=48)]
     bottom += _beads(0.01, r + 0.005, 0.025)
     # Vertical piped ridges all round the sides of both tiers.
-    bottom += ring_of(44, r + 0.012, lambda x, z, a: rod((x, 0.03, z), (x, 0.28, z), 0.016, 8))
+    bottom += ring_of(44, r + 0.02, lambda x, z, a: rod((x, 0.03, z), (x, 0.28, z), 0.016, 8))
     top = _beads(0.3, r * 0.98, 0.022)
     r2 = r * 0.65
     top.append(lathe([(r2, 0.3), (r2, 0.55)], sections=48))
     top += _beads(0.31, r2 + 0.005, 0.02)
-    top += ring_of(30, r2 + 0.012, lambda x, z, a: rod((x, 0.33, z), (x, 0.45, z), 0.014, 8))
+    top += ring_of(30, r2 + 0.02, lambda x, z, a: rod((x, 0.33, z), (x, 0.45, z), 0.014, 8))
     # Sprinkles on both tops.
     for _ in range(160):
         rr, aa = rng_s.uniform(0, 1), rng_s.uniform(0, 2 * math.pi)
@@ -774,7 +774,7 @@ def wedding_cake(tiers: int = 3, radius: float = 0.5, seed: int = 22) -> dict:
         part = bottom if k == 0 else top
         part.append(lathe([(r, y), (r, y + th)], sections=48))
         # Ruffles: stacked thin rings round the tier's lower half.
-        part += [torus((0, y + 0.035 + 0.03 * i, 0), r + 0.006, 0.011, 40) for i in range(int((th - 0.06) / 0.03))]
+        part += [torus((0, y + 0.035 + 0.034 * i, 0), r + 0.016, 0.012, 40) for i in range(int((th - 0.06) / 0.034))]
         part += ring_of(40, r + 0.004, lambda x, z, a, y=y, th=th: rod((x, y + th * 0.85, z), (x, y + th, z), 0.008, 5))
         part += _beads(y + 0.015, r + 0.005, 0.018)
         top_border = _beads(y + th, r - 0.005, 0.016)
@@ -790,6 +790,9 @@ def wedding_cake(tiers: int = 3, radius: float = 0.5, seed: int = 22) -> dict:
             a = 2 * math.pi * i / n
             part.append(sphere(((r + 0.01) * math.cos(a), y + th * 0.82, (r + 0.01) * math.sin(a)), 0.025,
                                subdivisions=1))
+            # A string of pearls hanging straight down from each swag point, clear of the side.
+            part += [sphere(((r + 0.03) * math.cos(a), y + th * 0.74 - 0.032 * q, (r + 0.03) * math.sin(a)), 0.013,
+                            subdivisions=1) for q in range(int(th * 0.7 / 0.032))]
         y += th
         if k < tiers - 1:
             # Separator plate on pillars: the next tier floats above this one.
@@ -841,13 +844,15 @@ def bundt_cake(radius: float = 0.5, flutes: int = 26, seed: int = 24) -> dict:
     rng = np.random.default_rng(seed)
     r = radius
     bottom = [lathe([(r + 0.1, 0), (r + 0.1, 0.02), (0, 0.02)], sections=48)]  # plate
-    prof = [(r * 0.3, 0.02), (r, 0.02), (r * 1.0, 0.12), (r * 0.85, 0.3), (r * 0.55, 0.36), (r * 0.3, 0.3)]
+    prof = [(r * 0.3, 0.02), (r * 0.9, 0.02), (r * 0.9, 0.12), (r * 0.78, 0.3), (r * 0.55, 0.36), (r * 0.3, 0.3)]
     bottom.append(lathe(prof, sections=48))
     for i in range(flutes):
         a = 2 * math.pi * i / flutes
         c, s = math.cos(a), math.sin(a)
-        bottom.append(rod(((r + 0.015) * c, 0.03, (r + 0.015) * s), ((r + 0.01) * c, 0.14, (r + 0.01) * s), 0.025, 8))
-        bottom.append(rod((r * 0.98 * c, 0.14, r * 0.98 * s), (r * 0.78 * c, 0.31, r * 0.78 * s), 0.02, 8))
+        # Deep flutes: round ribs on a slimmer core, with grooves between them.
+        bottom.append(rod((r * 0.97 * c, 0.03, r * 0.97 * s), (r * 0.97 * c, 0.13, r * 0.97 * s), 0.035, 10))
+        bottom.append(rod((r * 0.97 * c, 0.13, r * 0.97 * s), (r * 0.8 * c, 0.31, r * 0.8 * s), 0.03, 10))
+    bottom += _beads(0.035, r + 0.085, 0.014)
     top = [torus((0, 0.33, 0), r * 0.68, 0.06, 48)]
     for i in range(flutes * 2):
         a = 2 * math.pi * (i + 0.5) / (flutes * 2)
@@ -863,6 +868,10 @@ def bundt_cake(radius: float = 0.5, flutes: int = 26, seed: int = 24) -> dict:
         r0, r1 = r * (0.52 if i % 2 else 0.84), r * (0.84 if i % 2 else 0.52)
         top.append(rod((r0 * math.cos(a0), 0.4, r0 * math.sin(a0)), (r1 * math.cos(a1), 0.4, r1 * math.sin(a1)),
                        0.01, 5))
+    for _ in range(120):  # chopped nuts scattered on the glaze
+        rr, aa, b = rng.uniform(r * 0.5, r * 0.86), rng.uniform(0, 2 * math.pi), rng.uniform(0, math.pi)
+        x, z = rr * math.cos(aa), rr * math.sin(aa)
+        top.append(box((0.03, 0.012, 0.018), (x, 0.405, z), rot_y_deg=math.degrees(b)))
     for x, z, a in ring_of(6, r * 0.68, lambda x, z, a: (x, z, a)):
         top.append(sphere((x, 0.44, z), 0.05))
         top.append(rod((x, 0.48, z), (x + 0.03, 0.58, z + 0.02), 0.006, 6))
