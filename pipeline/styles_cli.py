@@ -131,7 +131,8 @@ def build_command(
         vocab, specs = builtin_set(set_name)
         path = set_path(set_name, out)
         if not quiet:
-            _stderr().print(f"set '{set_name}': {_plural(len(specs), 'exemplar')} at {RESOLUTION}³, {jobs} workers → {path}",
+            _stderr().print(f"set '{set_name}': {_plural(len(specs), 'exemplar')} at {RESOLUTION}³, "
+                            f"{jobs} workers → {path}",
                             markup=False)
         result = build_set(set_name, vocab, specs, path, force=force, workers=jobs,
                            progress=_progress(len(specs), quiet))

@@ -218,7 +218,9 @@ def map_parts(entry: FolderEntry, raw: Sequence[tuple[str, "trimesh.Trimesh", Pa
             continue
         parts.setdefault(part, []).append(mesh)
     if unknown:
-        listed = ", ".join(f"'{n}'" for n in unknown)
+        listed = ", ".join(f"'{n}'" for n in unknown[:8])
+        if len(unknown) > 8:
+            listed += f" and {len(unknown) - 8} more"
         if entry.is_folder:
             what, fix = "part file", "name each part file after a part"
         elif len(raw) == 1 and raw[0][0] == entry.name:
@@ -286,7 +288,8 @@ def folder_specs(folder: Path, vocabulary: Vocabulary, *, category: str | None =
         key = json.dumps({"layout": "folder" if entry.is_folder else "file",
                           "files": [f.relative_to(folder).as_posix() for f in files],
                           "up": up, "code": code}, sort_keys=True)
-        specs.append(ExemplarSpec(name=entry.name, category=cat, make=partial(exemplar_parts, entry, vocabulary, cat, up),
+        specs.append(ExemplarSpec(name=entry.name, category=cat,
+                                  make=partial(exemplar_parts, entry, vocabulary, cat, up),
                                   key=key, source="user", licence=licence, attribution="",
                                   input_files=tuple(files)))
     return specs, warnings

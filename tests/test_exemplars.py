@@ -18,7 +18,7 @@ import trimesh
 from typer.testing import CliRunner
 
 import pipeline.exemplars as exemplars
-from pipeline.exemplars import (FURNITURE, THINGS, ExemplarError, ExemplarSpec, StyleSet, build_set, encode_set,
+from pipeline.exemplars import (FURNITURE, THINGS, ExemplarError, ExemplarSpec, build_set, encode_set,
                                 fit_voxels, load_set, make_exemplar, read_meta, vocabulary_from_arg)
 from pipeline.user_exemplars import folder_specs, import_folder, part_for
 from sources.exemplars.prims import box, rod
@@ -289,6 +289,22 @@ def test_import_folder_with_one_file_per_part(tmp_path):
     for ex in (house, tower):
         assert np.nonzero(ex.labels == 2)[1].mean() > np.nonzero(ex.labels == 1)[1].mean()
     assert tower.labels.shape[1] == fit_voxels(R)
+
+
+def test_import_gltf_with_external_buffer(tmp_path):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    files = _chair_scene().export(file_type="gltf")  # {"model.gltf": JSON, "gltf_buffer_*.bin": bytes}
+    for name, data in files.items():
+        (folder / name).write_bytes(data)
+    (folder / "model.gltf").rename(folder / "chair.gltf")
+    specs, warnings = folder_specs(folder, FURNITURE)
+    assert warnings == [] and [s.name for s in specs] == ["chair"]
+    # The buffers hold the geometry: they are hashed for the cache along with the JSON.
+    buffers = sorted(n for n in files if n.endswith(".bin"))
+    assert specs[0].input_files[0].name == "chair.gltf"
+    assert buffers and sorted(p.name for p in specs[0].input_files[1:]) == buffers
+    assert sorted(specs[0].make()) == ["back", "leg", "seat"] and len(specs[0].make()["leg"]) == 4
 
 
 def test_import_with_two_workers_gives_the_same_bytes(user_folder, tmp_path):
