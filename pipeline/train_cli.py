@@ -26,8 +26,12 @@ class Layout(str, Enum):
 
 
 def resolve_style_set(name_or_path: str, progress=None):
-    """A built-in set name (built into ``style_dir()`` if needed; cached) or a set file → ``StyleSet``."""
-    from pipeline.exemplars import build_set, load_set
+    """A style set by name or file → ``StyleSet``.
+
+    A built-in name is built into ``style_dir()`` if needed (cached); another name is
+    a set imported there before (``decollage styles import``); else a ``.npz`` path.
+    """
+    from pipeline.exemplars import build_set, load_set, set_path
     from sources.exemplars import BUILTIN_SETS, builtin_set
 
     if name_or_path in BUILTIN_SETS:
@@ -35,8 +39,11 @@ def resolve_style_set(name_or_path: str, progress=None):
         return build_set(name_or_path, vocab, specs, workers=2, progress=progress).style_set
     path = Path(name_or_path)
     if path.suffix != ".npz" and not path.exists():
+        if set_path(name_or_path).is_file():
+            return load_set(set_path(name_or_path))
         raise UsageError(f"unknown style set '{name_or_path}'", field="--set",
-                         hint="built-in sets: " + ", ".join(BUILTIN_SETS) + "; or give a .npz set file")
+                         hint="built-in sets: " + ", ".join(BUILTIN_SETS)
+                              + "; a set imported with 'decollage styles import'; or a .npz set file")
     return load_set(path)
 
 
