@@ -22,7 +22,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from model.metrics import lp_scores, render_views, strict_loose_iou, style_patch_dictionary  # noqa: E402
+from model.metrics import lp_scores, strict_loose_iou, style_patch_dictionary  # noqa: E402
+from model.render_eval import render_views  # noqa: E402
 
 
 def noisy_shape(kind: int, seed: int, res: int, rough: bool = False) -> np.ndarray:
