@@ -18,7 +18,10 @@ Performance (CPU): weights in ``channels_last_3d``, ``torch.inference_mode``, an
 all cores (``os.cpu_count()``, capped by ``OMP_NUM_THREADS`` when that is set).
 The forward pass has no randomness; ``seed`` still seeds torch (inside a forked
 RNG, so the caller's RNG state is untouched) in case a future model samples noise.
-Blockwise/sparse evaluation is not implemented yet: one dense pass.
+Crops of up to ``DENSE_MAX_CELLS`` coarse cells (a 16³ shape's crop is 18³) run in
+one dense pass; larger ones (long words) run their fine levels block by block
+(``model.windows.blockwise_forward``: exact halos, empty blocks skipped), which
+bounds memory by one block and skips the empty space between letters.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import numpy as np
 from model.checkpoint import FORMAT_VERSION, Checkpoint, load_checkpoint
 from model.masks import fill_nearest
 from model.upsample import fill_styles_everywhere, nearest_upsample
+from model.windows import blockwise_forward
 from pipeline.errors import DetailizeError
 from pipeline.grid import FineGrid, LabeledGrid
 
@@ -39,6 +43,12 @@ DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "things.pt"
 
 #: Empty coarse cells added on every side before the generator runs (the training crop's margin).
 MARGIN = 1
+#: Crops of at most this many coarse cells run densely; larger ones block by block (``model.windows``):
+#: a 16³ shape's crop (18³ cells) stays dense, where blocks would recompute their halos for nothing,
+#: while a long word's fine levels keep to one block's memory and skip empty blocks (gaps, counters).
+DENSE_MAX_CELLS = 24**3
+#: Block edge in coarse cells for large crops (256³ fine voxels a block).
+BLOCK_CELLS = 16
 
 
 def resolve_device(device: str) -> "torch.device":  # noqa: F821 - torch is imported lazily
@@ -202,7 +212,10 @@ class DecollageDetailizer:
             torch.manual_seed(int(seed))
             inputs = gen.make_inputs(torch.from_numpy(occ_c)[None], torch.from_numpy(parts_c)[None],
                                      torch.from_numpy(styles_c)[None])
-            out = gen(*inputs, final_only=True)[-1][0, 0]
+            if occ_c.size <= DENSE_MAX_CELLS:
+                out = gen(*inputs, final_only=True)[-1][0, 0]
+            else:
+                out = blockwise_forward(gen, *inputs, block_cells=BLOCK_CELLS)[0, 0]
             # drop the part of the crop that lies outside the grid
             out = out[tuple(slice(b * f, out.shape[i] - a * f) for i, (b, a) in enumerate(pad))]
             crop = out.float().clamp_(0.0, 1.0).cpu().numpy()

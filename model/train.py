@@ -62,7 +62,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import platform
 import time
@@ -77,6 +76,7 @@ from model.checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from model.config import ModelConfig
 from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, rng_for, style_sample
 from model.masks import DOutputMasks, StyledCoarse
+from model.windows import Window, halo_cells, window_forward  # noqa: F401 - part of this module's API
 from pipeline.errors import DetailizeError
 
 
@@ -153,28 +153,6 @@ class TrainResult:
 
 # ----------------------------------------------------------------------------- fine-level windows
 
-#: A window of coarse cells (x, y, z slices).
-Window = tuple[slice, slice, slice]
-
-
-def halo_cells(cfg: ModelConfig, whole_levels: int) -> int:
-    """Coarse cells of context around a window that make the windowed levels exact.
-
-    Cutting the features at level ``whole_levels``'s input treats everything outside
-    the cut as zero; that error spreads inwards by (conservatively) 2c + 2 voxels per
-    transposed conv (2(c + 1) per voxel-shuffle conv), +1 per 3³ conv, +1 for the head.
-    The halo is the largest such depth over the windowed levels, in coarse cells
-    (1 for the lean layout cut at level 2, 3 when every level is windowed).
-    """
-    from model.config import Upsampler
-
-    c, need = 0, 0
-    for j in range(whole_levels, cfg.n_levels):
-        lv = cfg.levels[j]
-        c = (2 * c + 2 if lv.upsampler is Upsampler.CONV_TRANSPOSE else 2 * (c + 1)) + lv.n_convs
-        need = max(need, math.ceil((c + lv.head_kernel // 2) / 2 ** (j + 1)))
-    return need
-
 
 def surface_window(coarse_occ: np.ndarray, cells: int, rng: np.random.Generator) -> Window:
     """A ``cells``³ window of coarse cells (whole axis where the grid is smaller) around a random surface cell.
@@ -200,57 +178,6 @@ def check_window(cfg: ModelConfig, whole_levels: int, cells: int) -> None:
         if cfg.discriminators[j].output_size(cells * 2 ** (j + 1)) < 1:
             raise DetailizeError(f"a window of {cells} coarse cells is too small for the level-{j} discriminator",
                                  field="window_cells", hint="use a larger window_cells, or 0 for whole shapes")
-
-
-def window_forward(gen, occupancy, part_onehot, z, whole_levels: int, window: Window | None) -> list:
-    """The generator's forward with levels ``≥ whole_levels`` evaluated only on a coarse window.
-
-    Levels ``< whole_levels`` see the whole grid. At the first windowed level the
-    features are cut to the window plus ``halo_cells`` coarse cells (clamped to the
-    grid), and every windowed output is cropped back to the window, so output j of a
-    windowed level equals the whole-shape output restricted to the window (up to
-    float rounding). ``window=None`` is ``gen(...)``.
-
-    Returns:
-        per level, (1, 1, 2^(j+1)·w, …) where w is the whole grid (``j < whole_levels``)
-        or the window (otherwise).
-    """
-    import torch
-
-    from model.networks import _memory_format, _upsample, leaky_clamp
-
-    if window is None:
-        return gen(occupancy, part_onehot, z)
-    cfg = gen.cfg
-    gen._check(occupancy, part_onehot, z)
-    fmt = _memory_format(gen)
-    cond = z if not cfg.use_part_labels else torch.cat([part_onehot, z], 1)
-    cond = cond.contiguous(memory_format=fmt)
-    x = torch.cat([occupancy.to(z.dtype), cond], 1).contiguous(memory_format=fmt)
-    zc = z.contiguous(memory_format=fmt)
-    for i, conv in enumerate(gen.backbone):
-        if i:
-            x = torch.cat([x, zc], 1)
-        x = torch.nn.functional.leaky_relu(conv(x), cfg.leaky_slope, inplace=True)
-    shape = occupancy.shape[2:]
-    halo = halo_cells(cfg, whole_levels)
-    lo = [max(0, w.start - halo) for w in window]
-    hi = [min(n, w.stop + halo) for w, n in zip(window, shape)]
-    outs = []
-    for j, level in enumerate(gen.levels):
-        if j == whole_levels:  # cut features (at 2^j × coarse) and conditioning to window + halo
-            r = 2**j
-            x = x[:, :, lo[0] * r : hi[0] * r, lo[1] * r : hi[1] * r, lo[2] * r : hi[2] * r]
-            x = x.contiguous(memory_format=fmt)
-            cond = cond[:, :, lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]].contiguous(memory_format=fmt)
-        x = torch.cat([x, _upsample(cond, 2**j)], 1)
-        x, logit = level(x)
-        out = leaky_clamp(logit, cfg.clamp_slope)
-        if j >= whole_levels:
-            r = 2 ** (j + 1)
-            out = out[:, :, *(slice((w.start - a) * r, (w.stop - a) * r) for w, a in zip(window, lo))]
-        outs.append(out)
-    return outs
 
 
 class SampleView:

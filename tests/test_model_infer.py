@@ -181,3 +181,19 @@ def test_device_resolution():
     if not torch.cuda.is_available():
         with pytest.raises(DetailizeError, match="no CUDA GPU"):
             resolve_device("cuda")
+
+
+def test_large_crops_run_blockwise_with_the_dense_result(ckpt_path, monkeypatch):
+    import model.infer as infer
+
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    g = _grid((6, 3, 4))
+    dense = det.detailize(g).occupancy
+    monkeypatch.setattr(infer, "DENSE_MAX_CELLS", 0)
+    monkeypatch.setattr(infer, "BLOCK_CELLS", 2)
+    calls = []
+    real = infer.blockwise_forward
+    monkeypatch.setattr(infer, "blockwise_forward", lambda *a, **k: calls.append(k) or real(*a, **k))
+    blocks = det.detailize(g).occupancy
+    assert calls == [{"block_cells": 2}]
+    np.testing.assert_allclose(blocks, dense, atol=1e-5)

@@ -13,6 +13,7 @@ from model.checkpoint import load_checkpoint
 from model.config import ModelConfig
 from model.data import Exemplar
 from model.infer import DecollageDetailizer
+from model.networks import Generator
 from model.train import TrainConfig, train
 from pipeline.errors import DetailizeError
 from pipeline.grid import EMPTY, LabeledGrid
@@ -144,3 +145,41 @@ def test_bad_training_settings_refused(tmp_path):
     assert e.value.field == "recon_steps_early" and e.value.hint
     with pytest.raises(DetailizeError, match="checkpoint_every"):
         _tcfg(tmp_path, 1, checkpoint_every=0)
+
+
+@pytest.mark.parametrize("whole_levels, block", [(2, 2), (1, 3), (3, 2)])
+def test_blockwise_forward_equals_dense(whole_levels, block):
+    from model.windows import blockwise_forward
+
+    torch.manual_seed(0)
+    cfg = ModelConfig.lean(2, 2).scaled(0.25)
+    gen = Generator(cfg).eval()
+    occ = torch.zeros(1, 5, 4, 6)
+    occ[0, 1:4, 0:3, 1:5] = 1
+    parts = (torch.arange(4).view(1, 1, 4, 1) >= 2).long().expand(1, 5, 4, 6).contiguous()
+    styles = (torch.arange(6).view(1, 1, 1, 6) >= 3).long().expand(1, 5, 4, 6).contiguous()
+    with torch.no_grad():
+        ins = gen.make_inputs(occ, parts, styles)
+        dense = gen(*ins, final_only=True)[-1]
+        blocks = blockwise_forward(gen, *ins, block_cells=block, whole_levels=whole_levels, skip_empty=False)
+    assert blocks.shape == dense.shape == (1, 1, 80, 64, 96)
+    torch.testing.assert_close(blocks, dense, atol=1e-5, rtol=0)
+
+
+def test_blockwise_skips_only_blocks_far_from_the_shape():
+    from model.windows import blockwise_forward, halo_cells
+
+    torch.manual_seed(1)
+    cfg = ModelConfig.lean(2, 2).scaled(0.25)
+    gen = Generator(cfg).eval()
+    occ = torch.zeros(1, 12, 2, 2)
+    occ[0, 0:2] = 1  # only at the start of a long grid: the far blocks have nothing near them
+    lab = torch.zeros(1, 12, 2, 2, dtype=torch.long)
+    with torch.no_grad():
+        ins = gen.make_inputs(occ, lab, lab)
+        dense = gen(*ins, final_only=True)[-1]
+        sparse = blockwise_forward(gen, *ins, block_cells=2, whole_levels=2, skip_empty=True)
+    assert halo_cells(cfg, 2) == 1
+    # Blocks [0, 2) and [2, 4) have occupied cells within 1 cell: computed; from cell 4 on: skipped.
+    torch.testing.assert_close(sparse[..., :64, :, :], dense[..., :64, :, :], atol=1e-5, rtol=0)
+    assert torch.count_nonzero(sparse[..., 64:, :, :]) == 0 and torch.count_nonzero(dense[..., 64:, :, :]) > 0

@@ -1,0 +1,156 @@
+"""Running the generator's fine levels on parts of the grid: exact windows and blockwise inference.
+
+The generator is fully convolutional and its fine levels only see local context,
+so levels ``≥ j0`` can be evaluated on a window of coarse cells from the features
+that level ``j0`` receives, cut to the window plus a halo of ``halo_cells`` cells:
+the result on the window equals the whole-grid result (up to float rounding).
+
+- Training (``window_forward``) runs the coarse levels on the whole shape and the
+  fine ones on one random window around the surface.
+- Inference (``blockwise_forward``) covers the grid with blocks of
+  ``block_cells``³ coarse cells, so the fine levels' memory is bounded by the block
+  (long text grids), and may skip blocks whose cells and halo are all empty: the
+  generator's output there is whatever it makes of empty space, which the pipeline
+  binarises at 0.4 to nothing, so skipped blocks are written as 0.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from torch import Tensor
+
+#: A window of coarse cells (x, y, z slices).
+Window = tuple[slice, slice, slice]
+
+
+def halo_cells(cfg, whole_levels: int) -> int:
+    """Coarse cells of context around a window that make the windowed levels exact.
+
+    Cutting the features at level ``whole_levels``'s input treats everything outside
+    the cut as zero; that error spreads inwards by (conservatively) 2c + 2 voxels per
+    transposed conv (2(c + 1) per voxel-shuffle conv), +1 per 3³ conv, +1 for the head.
+    The halo is the largest such depth over the windowed levels, in coarse cells
+    (1 for the lean layout cut at level 2, 3 when every level is windowed).
+    """
+    from model.config import Upsampler
+
+    c, need = 0, 0
+    for j in range(whole_levels, cfg.n_levels):
+        lv = cfg.levels[j]
+        c = (2 * c + 2 if lv.upsampler is Upsampler.CONV_TRANSPOSE else 2 * (c + 1)) + lv.n_convs
+        need = max(need, math.ceil((c + lv.head_kernel // 2) / 2 ** (j + 1)))
+    return need
+
+
+def _trunk(gen, occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor", whole_levels: int, keep: bool):
+    """Backbone + levels ``< whole_levels`` on the whole grid.
+
+    Returns (features entering level ``whole_levels`` (1, C, 2^w·X, …), conditioning
+    (1, K, X, Y, Z), outputs of the whole levels if ``keep`` else []).
+    """
+    import torch
+
+    from model.networks import _memory_format, _upsample, leaky_clamp
+
+    cfg = gen.cfg
+    gen._check(occupancy, part_onehot, z)
+    fmt = _memory_format(gen)
+    cond = z if not cfg.use_part_labels else torch.cat([part_onehot, z], 1)
+    cond = cond.contiguous(memory_format=fmt)
+    x = torch.cat([occupancy.to(z.dtype), cond], 1).contiguous(memory_format=fmt)
+    zc = z.contiguous(memory_format=fmt)
+    for i, conv in enumerate(gen.backbone):
+        if i:
+            x = torch.cat([x, zc], 1)
+        x = torch.nn.functional.leaky_relu(conv(x), cfg.leaky_slope, inplace=True)
+    outs = []
+    for j in range(whole_levels):
+        x, logit = gen.levels[j](torch.cat([x, _upsample(cond, 2**j)], 1))
+        if keep:
+            outs.append(leaky_clamp(logit, cfg.clamp_slope))
+    return x, cond, outs
+
+
+def _fine_on_window(gen, x: "Tensor", cond: "Tensor", whole_levels: int, window: Window, halo: int,
+                    keep: bool) -> list:
+    """Levels ``≥ whole_levels`` on ``window`` (+ halo, clamped to the grid); outputs cropped to the window.
+
+    ``keep`` False: only the last level's output is returned (in a one-element list).
+    """
+    import torch
+
+    from model.networks import _memory_format, _upsample, leaky_clamp
+
+    cfg = gen.cfg
+    fmt = _memory_format(gen)
+    shape = cond.shape[2:]
+    lo = [max(0, w.start - halo) for w in window]
+    hi = [min(n, w.stop + halo) for w, n in zip(window, shape)]
+    r = 2**whole_levels
+    x = x[:, :, lo[0] * r : hi[0] * r, lo[1] * r : hi[1] * r, lo[2] * r : hi[2] * r].contiguous(memory_format=fmt)
+    cond = cond[:, :, lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]].contiguous(memory_format=fmt)
+    outs = []
+    for j in range(whole_levels, cfg.n_levels):
+        x, logit = gen.levels[j](torch.cat([x, _upsample(cond, 2**j)], 1))
+        if keep or j == cfg.n_levels - 1:
+            r = 2 ** (j + 1)
+            out = leaky_clamp(logit, cfg.clamp_slope)
+            outs.append(out[:, :, *(slice((w.start - a) * r, (w.stop - a) * r) for w, a in zip(window, lo))])
+    return outs
+
+
+def window_forward(gen, occupancy, part_onehot, z, whole_levels: int, window: Window | None) -> list:
+    """The generator's forward with levels ``≥ whole_levels`` evaluated only on a coarse window.
+
+    Levels ``< whole_levels`` see the whole grid. At the first windowed level the
+    features are cut to the window plus ``halo_cells`` coarse cells (clamped to the
+    grid), and every windowed output is cropped back to the window, so output j of a
+    windowed level equals the whole-shape output restricted to the window (up to
+    float rounding). ``window=None`` is ``gen(...)``.
+
+    Returns:
+        per level, (1, 1, 2^(j+1)·w, …) where w is the whole grid (``j < whole_levels``)
+        or the window (otherwise).
+    """
+    if window is None:
+        return gen(occupancy, part_onehot, z)
+    x, cond, outs = _trunk(gen, occupancy, part_onehot, z, whole_levels, keep=True)
+    return outs + _fine_on_window(gen, x, cond, whole_levels, window, halo_cells(gen.cfg, whole_levels), keep=True)
+
+
+def blockwise_forward(gen, occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor", *,
+                      block_cells: int = 8, whole_levels: int = 2, skip_empty: bool = True) -> "Tensor":
+    """The last level's output (1, 1, f·X, f·Y, f·Z), its fine levels run block by block.
+
+    Args:
+        occupancy, part_onehot, z: the generator's inputs for one shape (batch 1).
+        block_cells: block edge in coarse cells (8 → 128³ fine voxels a block).
+        whole_levels: levels run on the whole grid before the blocks (2: 32³ and 64³).
+        skip_empty: blocks whose cells and halo hold no occupied cell are not run (left 0).
+    Equal to ``gen(..., final_only=True)[-1]`` up to float rounding when ``skip_empty`` is False.
+    """
+    import torch
+
+    cfg = gen.cfg
+    whole_levels = min(max(whole_levels, 0), cfg.n_levels - 1)
+    x, cond, _ = _trunk(gen, occupancy, part_onehot, z, whole_levels, keep=False)
+    halo = halo_cells(cfg, whole_levels)
+    shape = tuple(occupancy.shape[2:])
+    f = cfg.factor
+    out = torch.zeros((1, 1, *(n * f for n in shape)), dtype=x.dtype, device=x.device)
+    occ = occupancy[0, 0] > 0
+    for bx in range(0, shape[0], block_cells):
+        for by in range(0, shape[1], block_cells):
+            for bz in range(0, shape[2], block_cells):
+                window = (slice(bx, min(bx + block_cells, shape[0])), slice(by, min(by + block_cells, shape[1])),
+                          slice(bz, min(bz + block_cells, shape[2])))
+                if skip_empty:
+                    near = tuple(slice(max(0, w.start - halo), w.stop + halo) for w in window)
+                    if not bool(occ[near].any()):
+                        continue
+                block = _fine_on_window(gen, x, cond, whole_levels, window, halo, keep=False)[0]
+                out[:, :, *(slice(w.start * f, w.stop * f) for w in window)] = block
+    return out
