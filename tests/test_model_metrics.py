@@ -269,3 +269,17 @@ def test_lp_is_seeded():
     a = M.lp_scores(x, d, n=50, seed=4)
     assert a == M.lp_scores(x, d, n=50, seed=4)
     assert 0.0 <= a[0] <= 1.0 and 0.0 <= a[1] <= 1.0
+
+
+def test_packed_extraction_and_cell_counts_match_the_dense_path():
+    rng = np.random.default_rng(11)
+    vol = rng.random((20, 18, 23)) > 0.5
+    pos = M.surface_candidates(vol)
+    dense = M.extract_patches(vol, pos)
+    packed = M.extract_packed(M._z_words(vol), pos)
+    np.testing.assert_array_equal(packed, M._pack(dense))
+    np.testing.assert_array_equal(M._bytes_to_words(packed), M._bytes_to_words(M._words_to_bytes(
+        M._bytes_to_words(packed))))
+    counts, _ = M.cell_signatures(dense)
+    np.testing.assert_array_equal(M.packed_cell_counts(packed), counts.numpy())
+    np.testing.assert_array_equal(M._octants_from_cells(M.packed_cell_counts(packed)), M._octants(dense))
