@@ -256,11 +256,26 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
             "styles": list(grid.style_names),
         },
         "fine_grid_shape": list(fine.shape),
+        "structure": _structure(fine, grid),
         "pivot_offset_m": [round(float(v), 9) for v in pivot_offset],
         "mesh": mesh_stats(apply_pivot(mesh, export.pivot)[0]),  # stats of the geometry as exported
         "engine": {"profile": export.profile.value, "lod_triangles": [len(m.faces) for m in (mesh, *lods)],
                    "collision": export.collision.value, "collision_pieces": len(collision)},
     }
+
+
+def _structure(fine, grid) -> dict:
+    """How well the detailed shape keeps the coarse one: the paper's Strict- and Loose-IOU.
+
+    The fine occupancy binarised at 0.4 and max-pooled ×16 against the coarse
+    occupancy (``model.metrics.strict_loose_iou``): strict = |D∧C|/|D∨C|,
+    loose = |D∧C|/|C|; 1 is perfect.
+    """
+    from model.metrics import strict_loose_iou
+
+    factor = fine.shape[0] // grid.shape[0]
+    strict, loose = strict_loose_iou(fine.occupancy, grid.occupancy, factor)
+    return {"strict_iou": round(strict, 4), "loose_iou": round(loose, 4)}
 
 
 # --------------------------------------------------------------------------- tasks run by executors
