@@ -376,10 +376,10 @@ class StyleDictionary:
 
 
 def _unique_packed(rows: list[np.ndarray], width: int) -> np.ndarray:
-    """Distinct rows of concatenated packed-bit arrays, in order of first occurrence.
+    """Distinct rows of concatenated packed-bit arrays, in order of first occurrence (exact).
 
-    Rows are grouped by a 64-bit hash and every row is compared byte-exactly
-    with the first of its group; a row that differs (a hash collision) is kept.
+    Rows are grouped by a 64-bit hash; a group whose rows are not all
+    byte-identical to its first (a hash collision) is deduplicated exactly.
     """
     if not rows:
         return np.zeros((0, width), dtype=np.uint8)
@@ -391,13 +391,19 @@ def _unique_packed(rows: list[np.ndarray], width: int) -> np.ndarray:
     hs = h[order]
     first = np.ones(len(h), dtype=bool)
     first[1:] = hs[1:] != hs[:-1]
-    head = order[np.maximum.accumulate(np.where(first, np.arange(len(h)), 0))]  # first row of each group
+    group = np.maximum.accumulate(np.where(first, np.arange(len(h)), 0))  # sorted position of the group's head
     dup = np.nonzero(~first)[0]
     differs = np.zeros(len(dup), dtype=bool)
     for s in range(0, len(dup), 65536):
         d = dup[s : s + 65536]
-        differs[s : s + 65536] = (packed[order[d]] != packed[head[d]]).any(axis=1)
-    keep = np.concatenate([order[first], order[dup[differs]]])
+        differs[s : s + 65536] = (packed[order[d]] != packed[order[group[d]]]).any(axis=1)
+    if not differs.any():
+        return packed[np.sort(order[first])]
+    collided = np.isin(group, group[dup[differs]])
+    rows_c = order[collided]
+    keys = packed[rows_c].view(np.dtype((np.void, packed.shape[1])))[:, 0]
+    _, first_c = np.unique(keys, return_index=True)
+    keep = np.concatenate([order[first & ~collided], rows_c[first_c]])
     return packed[np.sort(keep)]
 
 

@@ -283,3 +283,14 @@ def test_packed_extraction_and_cell_counts_match_the_dense_path():
     counts, _ = M.cell_signatures(dense)
     np.testing.assert_array_equal(M.packed_cell_counts(packed), counts.numpy())
     np.testing.assert_array_equal(M._octants_from_cells(M.packed_cell_counts(packed)), M._octants(dense))
+
+
+def test_unique_rows_survive_hash_collisions():
+    a = np.zeros(216, np.uint8)
+    b = np.zeros(216, np.uint8)
+    a[7] = 0x80  # top bit of 64-bit word 0
+    b[15] = 0x80  # top bit of word 1: the same linear hash (2^63 · odd = 2^63 mod 2^64)
+    assert M._row_hash(a[None])[0] == M._row_hash(b[None])[0]
+    c = np.full(216, 3, np.uint8)
+    got = M._unique_packed([np.stack([a, a, c]), np.stack([b, b, a, c])], 216)
+    np.testing.assert_array_equal(got, np.stack([a, c, b]))
