@@ -245,6 +245,8 @@ class ClsResult:
         train_images, test_images: (real, fake) image counts.
         train_s, test_s: seconds spent training / testing the classifier.
         config: the ClsConfig as a dict.
+        real_acc_per_shape, fake_acc_per_shape: accuracy on each shape's held-out
+            crops, in bank order (which outputs give themselves away).
     """
 
     cls: float
@@ -259,6 +261,8 @@ class ClsResult:
     train_s: float
     test_s: float
     config: dict
+    real_acc_per_shape: list[float] = field(default_factory=list)
+    fake_acc_per_shape: list[float] = field(default_factory=list)
 
     def to_json(self) -> dict:
         d = asdict(self)
@@ -311,22 +315,25 @@ def cls_score(real: ViewBank, fake: ViewBank, cfg: ClsConfig = CLS_FULL, device:
 
     started = time.perf_counter()
     net.eval()
-    acc = []
+    acc, per_shape = [], []
     with torch.inference_mode():
-        for sign, images in ((1.0, real.test), (-1.0, fake.test)):
+        for sign, bank in ((1.0, real), (-1.0, fake)):
             test_rng = np.random.default_rng(cfg.seed + 1)  # the same crop draws for both classes
-            crops = _Crops(images, cfg.crop, margin)
+            crops = _Crops(bank.test, cfg.crop, margin)
             order = np.repeat(np.arange(len(crops)), cfg.test_crops)
-            right = 0
+            right = np.zeros(len(order), dtype=bool)
             for s in range(0, len(order), 256):
                 logits = net(_prepare(crops.take(order[s : s + 256], test_rng), kernel, margin, device))
-                right += int((sign * logits > 0).sum())
-            acc.append(right / len(order))
+                right[s : s + 256] = (sign * logits[:, 0] > 0).cpu().numpy()
+            acc.append(float(right.mean()))
+            shape_of = np.asarray(bank.test_shape)[order]
+            per_shape.append([float(right[shape_of == k].mean()) for k in range(bank.n_shapes)])
     test_s = time.perf_counter() - started
     return ClsResult(cls=(acc[0] + acc[1]) / 2, real_acc=acc[0], fake_acc=acc[1], variant=cfg.variant,
                      split="views", real_shapes=real.n_shapes, fake_shapes=fake.n_shapes,
                      train_images=(len(real.train), len(fake.train)), test_images=(len(real.test), len(fake.test)),
-                     train_s=train_s, test_s=test_s, config=asdict(cfg))
+                     train_s=train_s, test_s=test_s, config=asdict(cfg), real_acc_per_shape=per_shape[0],
+                     fake_acc_per_shape=per_shape[1])
 
 
 def render_bank(shapes: Iterable, cfg: ClsConfig, seeds: Iterable[int] | None = None) -> ViewBank:

@@ -279,6 +279,9 @@ from pipeline.train_cli import train_command  # noqa: E402 - registered after th
 
 app.command("train")(train_command)
 
+from pipeline.eval_cli import eval_command  # noqa: E402
+app.command("eval")(eval_command)
+
 
 from pipeline.styles_cli import styles_app  # noqa: E402 - uses the shared helpers above lazily
 

@@ -348,13 +348,25 @@ def make_protocol(name: str = "things_v1", set_name: str = "things", folder: Pat
     Needs the CAD and text sources (build123d, fonts) and builds the style set
     if it is not cached. Returns the JSON path.
     """
-    from pipeline.export import write_bytes_atomic
     from pipeline.train_cli import resolve_style_set
 
     style_set = resolve_style_set(set_name)
+    made = recipe_contents(folder / f"{name}_contents.yaml", tuple(style_set.vocabulary.parts), progress) \
+        + augmented_contents(style_set)
+    return write_protocol(name, folder, set_name, style_set, made)
+
+
+def write_protocol(name: str, folder: Path, set_name: str, style_set, made: list[tuple[str, str, dict, np.ndarray]],
+                   n_single: int = N_SINGLE, n_mixed: int = N_MIXED, seed: int = HELD_OUT_SEED) -> Path:
+    """Write a protocol from its contents (id, kind, description, coarse labels) and a style set.
+
+    ``set_name`` is what the protocol records to find the set again: a built-in
+    set name, or a ``.npz`` set file (relative to the protocol's folder).
+    """
+    from pipeline.export import write_bytes_atomic
+
     parts = tuple(style_set.vocabulary.parts)
     styles = [e.name for e in style_set.exemplars]
-    made = recipe_contents(folder / f"{name}_contents.yaml", parts, progress) + augmented_contents(style_set)
     for cid, _, _, lab in made:
         missing = [p for i, p in enumerate(parts) if not (lab == i).any()]
         if missing:
@@ -362,7 +374,7 @@ def make_protocol(name: str = "things_v1", set_name: str = "things", folder: Pat
                                 hint="every content needs every part, or mixed styles mean nothing")
         if max(lab.shape) > CONTENT_CELLS + 2:
             raise ProtocolError(f"content {cid} is {lab.shape} cells, more than {CONTENT_CELLS + 2}", field=cid)
-    assignments = style_assignments(styles, len(made), parts)
+    assignments = style_assignments(styles, len(made), parts, seed, n_single, n_mixed)
     data = encode_contents([(cid, lab) for cid, _, _, lab in made])
     outputs = []
     for (cid, _, _, _), rows in zip(made, assignments):
@@ -370,14 +382,24 @@ def make_protocol(name: str = "things_v1", set_name: str = "things", folder: Pat
     meta = {
         "format": FORMAT, "version": FORMAT_VERSION, "name": name, "style_set": set_name,
         "style_set_hash": style_set.inputs_hash, "parts": list(parts), "styles": styles,
-        "seed": HELD_OUT_SEED, "n_single": N_SINGLE, "n_mixed": N_MIXED,
+        "seed": seed, "n_single": n_single, "n_mixed": n_mixed,
         "contents_file": f"{name}.npz", "contents_sha256": hashlib.sha256(data).hexdigest(),
         "made_by": "python benchmarks/make_protocol.py",
         "contents": [{"id": cid, "kind": kind, "shape": list(lab.shape), "occupied": int((lab >= 0).sum()),
                       **desc} for cid, kind, desc, lab in made],
         "outputs": outputs,
     }
-    write_bytes_atomic(folder / f"{name}.npz", data)
-    json_path = folder / f"{name}.json"
+    write_bytes_atomic(Path(folder) / f"{name}.npz", data)
+    json_path = Path(folder) / f"{name}.json"
     write_bytes_atomic(json_path, _format_json(meta).encode())
     return json_path
+
+
+def resolve_protocol_set(protocol: Protocol):
+    """The protocol's style set: a built-in name (built and cached if needed) or a .npz next to the protocol."""
+    from pipeline.train_cli import resolve_style_set
+
+    name = protocol.style_set or "things"
+    if name.endswith(".npz") and not Path(name).is_absolute():
+        name = str(protocol.path.parent / name)
+    return resolve_style_set(name)

@@ -171,3 +171,4 @@ def test_cls_cubes_vs_spheres_is_high():
     r = cls_score(cubes, spheres, _TINY)
     assert r.cls > 0.75 and r.real_acc > 0.6 and r.fake_acc > 0.6
     assert r.to_json()["config"]["steps"] == 80
+    assert len(r.fake_acc_per_shape) == 4 and np.mean(r.fake_acc_per_shape) == pytest.approx(r.fake_acc)

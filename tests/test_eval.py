@@ -1,0 +1,223 @@
+"""The evaluation protocol (pipeline/eval_protocol.py) and ``decollage eval`` on a tiny protocol and style set."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from typer.testing import CliRunner
+
+from model.cls_score import ClsConfig
+from pipeline.cli import app
+from pipeline.eval_protocol import (DEFAULT_PROTOCOL, ProtocolError, check_detailizer, load_protocol,
+                                    style_assignments, write_protocol)
+from pipeline.exemplars import THINGS, Exemplar, encode_set, load_set
+
+RUNNER = CliRunner()
+R = 64  # tiny set resolution: 4³ coarse contents → 64³ outputs
+TINY_STYLES = (("blocky", "building"), ("ridged", "plant"), ("stepped", "cake"))
+
+
+@pytest.fixture(autouse=True)
+def _one_thread(monkeypatch):
+    before = torch.get_num_threads()
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def _exemplar(i: int, name: str, category: str) -> Exemplar:
+    """A 64³ two-part exemplar with its own surface texture (bottom = label 1, top = label 2)."""
+    lab = np.zeros((R, R, R), np.uint8)
+    lab[12:52, 6:36, 12:52] = 1
+    lab[16:48, 36:54, 16:48] = 2
+    x, y, z = np.meshgrid(*[np.arange(R)] * 3, indexing="ij")
+    period = 3 + 2 * i
+    lab[((x + y + z) % period == 0) & (lab == 1) & ((x < 14) | (x > 49) | (z < 14) | (z > 49))] = 0  # grooves
+    idx = np.argwhere(lab)
+    lo, hi = idx.min(axis=0), idx.max(axis=0) + 1
+    crop = lab[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
+    return Exemplar(crop, tuple(int(v) for v in lo),
+                    {"name": name, "category": category, "shape": list(crop.shape), "offset": [int(v) for v in lo]})
+
+
+def _content(seed: int) -> np.ndarray:
+    """A 4³-with-margin coarse content: a 2×1×2 bottom under a 2×1×2 top, plus a random extra cell."""
+    lab = np.full((4, 4, 4), -1, np.int8)
+    lab[1:3, 1, 1:3] = 0
+    lab[1:3, 2, 1:3] = 1
+    if seed % 2:
+        lab[1, 2, 2] = -1
+    return lab
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> Path:
+    """A tiny style set (3 exemplars at 64³) and a protocol of 3 contents × (2 single + 2 mixed) = 12 outputs."""
+    folder = tmp_path_factory.mktemp("tiny_protocol")
+    exemplars = [_exemplar(i, n, c) for i, (n, c) in enumerate(TINY_STYLES)]
+    (folder / "tiny.npz").write_bytes(encode_set("tiny", THINGS, R, "tiny-hash", exemplars))
+    style_set = load_set(folder / "tiny.npz")
+    made = [(f"c{k}", "cad", {"note": "hand-made"}, _content(k)) for k in range(3)]
+    return write_protocol("tiny_v1", folder, "tiny.npz", style_set, made, n_single=2, n_mixed=2)
+
+
+@pytest.fixture
+def tiny_cls(monkeypatch):
+    """Make the 'quick' Cls variant tiny (fast enough for a unit test)."""
+    from model import cls_score
+
+    small = ClsConfig("quick", n_views=4, test_views=1, steps=10, batch=8, width=2, crop=32, test_crops=2)
+    monkeypatch.setitem(cls_score.CLS_VARIANTS, "quick", small)
+
+
+def _tiny_checkpoint(path: Path, styles: tuple[str, ...]) -> Path:
+    from model.checkpoint import Checkpoint, save_checkpoint
+    from model.config import ModelConfig
+    from model.networks import Generator
+
+    cfg = ModelConfig.lean(2, len(styles)).scaled(0.125)
+    torch.manual_seed(0)
+    gen = Generator(cfg)
+    ck = Checkpoint(cfg, styles, ("bottom", "top"), (("bottom", "top"),) * len(styles), gen.state_dict(),
+                    {"step": 0})
+    return save_checkpoint(path, ck)
+
+
+# --------------------------------------------------------------------------- the shipped protocol
+
+
+def test_shipped_protocol_is_20_contents_by_16_styles():
+    from sources.exemplars import builtin_set
+
+    p = load_protocol(DEFAULT_PROTOCOL)
+    assert len(p.contents) == 20 and len(p.outputs) == 320
+    assert len({o.id for o in p.outputs}) == 320 and [o.index for o in p.outputs] == list(range(320))
+    per_content = Counter(o.content for o in p.outputs)
+    assert set(per_content.values()) == {16}
+    assert all(sum(o.mixed for o in p.outputs if o.content == c) == 8 for c in p.contents)
+    kinds = Counter(info["kind"] for info in p.content_info.values())
+    assert set(kinds) == {"text", "cad", "mesh", "voxels", "augmented_exemplar"} and kinds["augmented_exemplar"] == 8
+    for cid, lab in p.contents.items():  # at most 16³ (256³ fine), both parts present, one empty cell a side
+        assert max(lab.shape) <= 16 and set(np.unique(lab)) == {-1, 0, 1}, cid
+        assert (lab[0] == -1).all() and (lab[-1] == -1).all() and (lab[:, :, 0] == -1).all()
+    # the styles are the 'things' set's exemplars, and each is the single style of 8 outputs
+    assert list(p.styles) == [s.name for s in builtin_set("things")[1]]
+    single = Counter(o.styles["bottom"] for o in p.outputs if not o.mixed)
+    assert set(single) == set(p.styles) and set(single.values()) == {8}
+
+
+def test_output_grid_carries_the_assignment():
+    p = load_protocol(DEFAULT_PROTOCOL)
+    o = next(o for o in p.outputs if o.mixed)
+    g = p.grid(o)
+    lab = p.contents[o.content]
+    assert g.part_names == ("bottom", "top") and np.array_equal(g.occupancy, lab >= 0)
+    for part_index, part in enumerate(g.part_names):
+        used = {g.style_names[s] for s in np.unique(g.style[lab == part_index])}
+        assert used == {o.styles[part]}
+
+
+def test_style_assignments_single_then_mixed():
+    rows = style_assignments(["a", "b", "c", "d"], 2, ("bottom", "top"), seed=1, n_single=2, n_mixed=3)
+    assert [r["bottom"] for r in rows[0][:2]] == ["a", "b"] and [r["bottom"] for r in rows[1][:2]] == ["c", "d"]
+    for per in rows:
+        mixed = per[2:]
+        assert all(r["bottom"] != r["top"] for r in mixed)
+        assert len({tuple(r.items()) for r in mixed}) == 3
+    assert rows == style_assignments(["a", "b", "c", "d"], 2, ("bottom", "top"), seed=1, n_single=2, n_mixed=3)
+
+
+def test_protocol_refuses_damaged_or_inconsistent_files(tiny, tmp_path):
+    with pytest.raises(ProtocolError, match="not found"):
+        load_protocol(tmp_path / "nope.json")
+    meta = json.loads(tiny.read_text())
+    folder = tmp_path / "p"
+    folder.mkdir()
+    (folder / "tiny_v1.npz").write_bytes((tiny.parent / "tiny_v1.npz").read_bytes() + b"x")
+    (folder / "p.json").write_text(json.dumps(meta))
+    with pytest.raises(ProtocolError, match="does not match the hash"):
+        load_protocol(folder / "p.json")
+    (folder / "tiny_v1.npz").write_bytes((tiny.parent / "tiny_v1.npz").read_bytes())
+    meta["outputs"][3]["styles"]["top"] = "gothic"
+    (folder / "p.json").write_text(json.dumps(meta))
+    with pytest.raises(ProtocolError, match="gothic") as err:
+        load_protocol(folder / "p.json")
+    assert err.value.field == "outputs[3]"
+
+
+def test_check_detailizer_names_unknown_styles(tiny):
+    p = load_protocol(tiny)
+
+    class Known:
+        name = "stub"
+        style_names = ("blocky", "other")
+        part_names = ("bottom", "top")
+
+    with pytest.raises(ProtocolError, match="2 style\\(s\\).*ridged, stepped"):
+        check_detailizer(p, Known())
+    Known.style_names = None  # accepts any name (the upsample baseline)
+    check_detailizer(p, Known())
+
+
+# --------------------------------------------------------------------------- decollage eval
+
+
+def test_eval_upsample_writes_json_and_markdown(tiny, tmp_path, tiny_cls):
+    out = tmp_path / "ev"
+    res = RUNNER.invoke(app, ["eval", "--detailizer", "upsample", "--protocol", str(tiny), "--limit", "2",
+                              "--cls", "quick", "--threads", "1", "--device", "cpu", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    report = json.loads((out / "eval.json").read_text())
+    assert report["protocol"]["evaluated"] == 2 and report["protocol"]["outputs"] == 12
+    assert [r["id"] for r in report["outputs"]] == ["c0/00", "c0/01"]
+    assert report["cls_variant"] == "quick" and report["cls"]["split"] == "views"
+    assert report["cls"]["test_images"] == [3, 2]  # 3 exemplars and 2 outputs, 1 held-out view each
+    # the baseline keeps the coarse structure exactly: its ×16 max-pool is the content
+    assert report["means"]["strict_iou"] == 1.0 and report["means"]["loose_iou"] == 1.0
+    for key in ("lp_iou", "lp_f", "cls"):
+        assert 0.0 <= report["means"][key] <= 1.0
+    assert all(0.0 <= r["cls_fake_acc"] <= 1.0 for r in report["outputs"])
+    assert report["machine"]["cpu_count"] >= 1 and report["timings"]["total_s"] > 0
+    md = (out / "eval.md").read_text()
+    assert "| detailizer | outputs | Strict-IOU | Loose-IOU | LP-IOU | LP-F | Cls |" in md
+    assert "| upsample | 2 | 1.000 | 1.000 |" in md and "Cls variant: **quick**" in md
+
+
+def test_eval_learned_checkpoint_without_cls(tiny, tmp_path):
+    ckpt = _tiny_checkpoint(tmp_path / "tiny.pt", tuple(n for n, _ in TINY_STYLES))
+    res = RUNNER.invoke(app, ["eval", "--checkpoint", str(ckpt), "--protocol", str(tiny), "--limit", "3",
+                              "--cls", "none", "--threads", "1", "--device", "cpu", "--out", str(tmp_path / "ev")])
+    assert res.exit_code == 0, res.output
+    report = json.loads((tmp_path / "ev" / "eval.json").read_text())
+    assert report["detailizer"]["name"] == "decollage" and report["cls"] is None
+    assert report["cls_variant"] == "none" and report["means"]["cls"] is None
+    assert [r["mixed"] for r in report["outputs"]] == [False, False, True]  # 2 single, then mixed
+    assert "Cls variant: **none**" in (tmp_path / "ev" / "eval.md").read_text()
+
+
+def _fails(args: list[str], *needles: str) -> None:
+    res = RUNNER.invoke(app, ["eval", "--threads", "1", "--device", "cpu", *args])
+    assert res.exit_code == 2, res.output
+    assert "Traceback" not in res.output and "error:" in res.output
+    for needle in needles:
+        assert needle in res.output, res.output
+
+
+def test_eval_errors_are_one_line(tiny, tmp_path):
+    _fails(["--checkpoint", str(tmp_path / "missing.pt"), "--protocol", str(tiny)], "checkpoint not found")
+    wrong = _tiny_checkpoint(tmp_path / "wrong.pt", ("tower", "tree", "cake"))
+    _fails(["--checkpoint", str(wrong), "--protocol", str(tiny), "--out", str(tmp_path / "o")],
+           "does not know", "blocky")
+    assert not (tmp_path / "o" / "eval.json").exists()
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    _fails(["--detailizer", "upsample", "--protocol", str(tiny), "--out", str(blocker / "sub")], str(blocker))
+    _fails(["--protocol", str(tiny)], "--checkpoint")
+    _fails(["--detailizer", "upsample", "--checkpoint", str(wrong), "--protocol", str(tiny)], "no checkpoint")
+    _fails(["--detailizer", "upsample", "--protocol", str(tmp_path / "none.json")], "protocol file not found")
