@@ -64,7 +64,7 @@ class ClsConfig:
     variant: str = "full"
     n_views: int = 24
     test_views: int = 8
-    steps: int = 600
+    steps: int = 1000
     batch: int = 64
     width: int = 8
     crop: int = 64

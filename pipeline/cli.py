@@ -281,6 +281,8 @@ app.command("train")(train_command)
 
 from pipeline.eval_cli import eval_command  # noqa: E402
 app.command("eval")(eval_command)
+from pipeline.bench_cli import bench_command  # noqa: E402
+app.command("bench")(bench_command)
 
 
 from pipeline.styles_cli import styles_app  # noqa: E402 - uses the shared helpers above lazily

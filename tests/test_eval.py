@@ -221,3 +221,46 @@ def test_eval_errors_are_one_line(tiny, tmp_path):
     _fails(["--protocol", str(tiny)], "--checkpoint")
     _fails(["--detailizer", "upsample", "--checkpoint", str(wrong), "--protocol", str(tiny)], "no checkpoint")
     _fails(["--detailizer", "upsample", "--protocol", str(tmp_path / "none.json")], "protocol file not found")
+
+
+# --------------------------------------------------------------------------- decollage bench
+
+
+def test_doc_sections_are_replaced_in_place(tmp_path):
+    from pipeline.benchmarking import write_doc_section
+
+    doc = tmp_path / "docs" / "benchmarks.md"
+    doc.parent.mkdir()
+    write_doc_section(doc, "bench", "speed v1")
+    write_doc_section(doc, "eval:upsample", "table A")
+    write_doc_section(doc, "bench", "speed v2\nsecond line")
+    text = doc.read_text()
+    assert text.startswith("# Benchmarks\n") and "speed v1" not in text
+    assert text.index("speed v2\nsecond line") < text.index("table A")  # the section kept its place
+    assert text.count("<!-- decollage:bench:begin -->") == 1 and text.count("<!-- decollage:eval:upsample:end -->") == 1
+
+
+def test_bench_measures_in_a_child_and_formats(tmp_path):
+    from model.evaluate import machine_info
+    from pipeline.bench_cli import bench_markdown
+    from pipeline.benchmarking import measure_detailizer
+
+    r = measure_detailizer("upsample", "cpu", repeats=1, threads=1)
+    assert r["device"] == "cpu" and r["threads"] == 1 and 0 < r["median_s"] < 30 and r["peak_rss_gb"] > 0.05
+    assets = [{"recipe": "r.yaml", "asset": "a", "detailizer": "upsample", "fine_grid": [256, 128, 64],
+               "stages_s": dict.fromkeys(("source", "voxelize", "regions", "detailize", "mesh", "export"), 0.5),
+               "total_s": 3.0, "triangles": 1234, "repeats": 1}]
+    train = {"iterations": 2, "resolution": 256, "layout": "lean", "device": "cpu", "threads": 2,
+             "early_s": 5.25, "later_s": 2.5}
+    md = bench_markdown(machine_info(), [r], assets, train, "random-lean")
+    assert "| upsample (baseline) | cpu | 1 |" in md and "| r.yaml | a | upsample | 256×128×64 |" in md
+    assert "| early (4 reconstruction steps + 1 adversarial) | 5.25 |" in md and "cores" in md
+
+
+def test_bench_errors_are_one_line(tmp_path):
+    res = RUNNER.invoke(app, ["bench", "--checkpoint", str(tmp_path / "missing.pt"), "--out", str(tmp_path / "b.md")])
+    assert res.exit_code == 2 and "checkpoint not found" in res.output and "Traceback" not in res.output
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    res = RUNNER.invoke(app, ["bench", "--out", str(blocker / "b.md"), "--no-assets", "--train-iterations", "0"])
+    assert res.exit_code == 2 and str(blocker) in res.output and "Traceback" not in res.output
