@@ -264,3 +264,25 @@ def test_bench_errors_are_one_line(tmp_path):
     blocker.write_text("x")
     res = RUNNER.invoke(app, ["bench", "--out", str(blocker / "b.md"), "--no-assets", "--train-iterations", "0"])
     assert res.exit_code == 2 and str(blocker) in res.output and "Traceback" not in res.output
+
+
+def test_ablation_presets_change_one_thing_each(tmp_path):
+    from model.ablations import ABLATIONS, ablation_configs
+    from model.config import DownLoss, ModelConfig
+    from model.train import TrainConfig
+
+    cfg, tcfg = ModelConfig.lean(2, 20), TrainConfig(out_dir=str(tmp_path), steps=1)
+    changed = {}
+    for name in ABLATIONS:
+        m, t = ablation_configs(name, cfg, tcfg)
+        ModelConfig.from_dict(m.to_dict())  # still a valid, serialisable config
+        diff = {k for k in ("losses", "use_part_labels") if getattr(m, k) != getattr(cfg, k)}
+        diff |= {k for k in ("adaptive_alpha",) if getattr(t, k) != getattr(tcfg, k)}
+        changed[name] = diff
+    assert changed == {"full": set(), "no_down": {"losses"}, "no_up": {"losses"},
+                       "no_adaptive_alpha": {"adaptive_alpha"}, "paper_losses": {"losses"},
+                       "no_part_labels": {"use_part_labels"}}
+    assert ablation_configs("no_down", cfg, tcfg)[0].losses.gamma_down == 0.0
+    assert ablation_configs("paper_losses", cfg, tcfg)[0].losses.down_loss is DownLoss.PAPER_MSE
+    with pytest.raises(KeyError, match="known"):
+        ablation_configs("no_pyramid", cfg, tcfg)
