@@ -131,10 +131,12 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
             real.add(render_views(shape, cls_cfg.n_views, seed=REAL_VIEW_SEED + i))
         fake = ViewBank(cls_cfg.n_views, cls_cfg.test_views)
         timer.add("render_real_s", time.perf_counter() - t)
+        say(f"exemplar views: {len(exemplars)} × {cls_cfg.n_views} ({time.perf_counter() - t:.1f} s)")
     del exemplars
 
     kinds = {cid: info.get("kind", "?") for cid, info in protocol.content_info.items()}
     rows = []
+    loop_start = time.perf_counter()
     for n, out in enumerate(outputs):
         t0 = time.perf_counter()
         grid = protocol.grid(out)
@@ -153,8 +155,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
         rows.append({"id": out.id, "content": out.content, "kind": kinds.get(out.content, "?"), "mixed": out.mixed,
                      "styles": out.styles, "strict_iou": strict, "loose_iou": loose, "lp_iou": lp_iou, "lp_f": lp_f,
                      "occupied_fine": int(binary.sum()), "seconds": round(t3 - t0, 3)})
-        elapsed = time.perf_counter() - started
-        eta = elapsed / (n + 1) * (len(outputs) - n - 1)
+        eta = (time.perf_counter() - loop_start) / (n + 1) * (len(outputs) - n - 1)
         say(f"[{n + 1}/{len(outputs)}] {out.id}: strict {strict:.3f} loose {loose:.3f} LP-IOU {lp_iou:.3f} "
             f"LP-F {lp_f:.3f} ({t1 - t0:.2f} + {t2 - t1:.2f} + {t3 - t2:.2f} s; ETA {eta / 60:.1f} min)")
 

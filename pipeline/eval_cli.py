@@ -38,6 +38,8 @@ def eval_command(
     cls: ClsChoice = typer.Option(ClsChoice.FULL, "--cls", help="Cls-score variant: full, quick or none."),
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda or cuda:N."),
     threads: Optional[int] = typer.Option(None, "--threads", min=1, help="CPU threads (default: every core)."),
+    doc: Optional[Path] = typer.Option(None, "--doc", help="Also put the tables into this markdown file's "
+                                       "'eval:<detailizer>' section (e.g. docs/benchmarks.md)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress lines."),
 ) -> None:
     """Evaluate a detailizer on the fixed protocol: Strict/Loose-IOU, LP-IOU, LP-F and Cls."""
@@ -45,12 +47,12 @@ def eval_command(
     from pipeline.errors import DecollageError
 
     try:
-        _eval(checkpoint, detailizer, protocol, out, limit, cls.value, device, threads, quiet)
+        _eval(checkpoint, detailizer, protocol, out, limit, cls.value, device, threads, doc, quiet)
     except DecollageError as exc:
         _fail(exc)
 
 
-def _eval(checkpoint, detailizer, protocol_path, out, limit, cls, device, threads, quiet) -> None:
+def _eval(checkpoint, detailizer, protocol_path, out, limit, cls, device, threads, doc, quiet) -> None:
     import torch
 
     from model.evaluate import evaluate, markdown, write_report
@@ -77,6 +79,8 @@ def _eval(checkpoint, detailizer, protocol_path, out, limit, cls, device, thread
     det = get_detailizer(name, str(checkpoint) if checkpoint is not None else None, dev)
     check_detailizer(protocol, det)
     ensure_writable_dir(out)
+    if doc is not None:
+        ensure_writable_dir(Path(doc).parent)
     say(f"protocol {protocol.name}: {len(protocol.outputs)} outputs"
         + (f", evaluating the first {min(limit, len(protocol.outputs))}" if limit else "")
         + f"; detailizer {det.name}; Cls {cls}; device {dev}, {torch.get_num_threads()} threads")
@@ -90,3 +94,9 @@ def _eval(checkpoint, detailizer, protocol_path, out, limit, cls, device, thread
     js, md = write_report(report, out)
     typer.echo(markdown(report))
     say(f"wrote {js} and {md}")
+    if doc is not None:
+        from pipeline.benchmarking import write_doc_section
+
+        key = "eval:" + det.name + (f":{Path(checkpoint).stem}" if checkpoint is not None else "")
+        write_doc_section(doc, key, markdown(report))
+        say(f"wrote the '{key}' section of {doc}")

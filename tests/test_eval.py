@@ -171,7 +171,8 @@ def test_check_detailizer_names_unknown_styles(tiny):
 def test_eval_upsample_writes_json_and_markdown(tiny, tmp_path, tiny_cls):
     out = tmp_path / "ev"
     res = RUNNER.invoke(app, ["eval", "--detailizer", "upsample", "--protocol", str(tiny), "--limit", "2",
-                              "--cls", "quick", "--threads", "1", "--device", "cpu", "--out", str(out)])
+                              "--cls", "quick", "--threads", "1", "--device", "cpu", "--out", str(out),
+                              "--doc", str(tmp_path / "docs" / "benchmarks.md")])
     assert res.exit_code == 0, res.output
     report = json.loads((out / "eval.json").read_text())
     assert report["protocol"]["evaluated"] == 2 and report["protocol"]["outputs"] == 12
@@ -187,6 +188,8 @@ def test_eval_upsample_writes_json_and_markdown(tiny, tmp_path, tiny_cls):
     md = (out / "eval.md").read_text()
     assert "| detailizer | outputs | Strict-IOU | Loose-IOU | LP-IOU | LP-F | Cls |" in md
     assert "| upsample | 2 | 1.000 | 1.000 |" in md and "Cls variant: **quick**" in md
+    doc = (tmp_path / "docs" / "benchmarks.md").read_text()
+    assert "<!-- decollage:eval:upsample:begin -->" in doc and "| upsample | 2 | 1.000 | 1.000 |" in doc
 
 
 def test_eval_learned_checkpoint_without_cls(tiny, tmp_path):
