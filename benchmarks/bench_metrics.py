@@ -8,7 +8,7 @@ mostly distinct, some close to style patches. The dictionary is built from
 with other noise seeds, and for each output the script times Strict/Loose-IOU
 (against its own 16³ max-pool, shifted by a cell so that it is not trivially 1)
 and LP-IOU + LP-F (1000 patches), then extrapolates to 320 outputs; it also
-times the Cls renderer per view.
+times the Cls renderer (exposed-voxel extraction once, then per view).
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def main() -> None:
     parser.add_argument("--outputs", type=int, default=4)
     parser.add_argument("--rough", type=int, default=2, help="extra outputs with rough surfaces")
     parser.add_argument("--res", type=int, default=256)
-    parser.add_argument("--views", type=int, default=2, help="Cls renders to time (0: skip)")
+    parser.add_argument("--views", type=int, default=24, help="Cls renders to time (0: skip)")
     args = parser.parse_args()
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}, res {args.res}³")
 
@@ -94,10 +94,17 @@ def main() -> None:
         print(f"output {n}{' (rough)' if rough else ''}: strict {strict:.3f} loose {loose:.3f} ({t_iou:.2f} s)  "
               f"LP-IOU {lp_iou:.3f} LP-F {lp_f:.3f} ({t_lp:.2f} s)")
     if args.views:
+        from model.render_eval import surface_voxels
+
         t = time.perf_counter()
-        render_views(styles[0], n_views=args.views, seed=0)
+        voxels = surface_voxels(styles[0])
+        prep = time.perf_counter() - t
+        t = time.perf_counter()
+        render_views(voxels, n_views=args.views, seed=0)
         per_view = (time.perf_counter() - t) / args.views
-        print(f"render: {per_view:.2f} s per view → 24 views of 320 outputs ≈ {per_view * 24 * 320 / 60:.0f} min")
+        print(f"render (model/render_eval.py): exposed voxels {len(voxels)} in {prep * 1e3:.0f} ms, then "
+              f"{per_view * 1e3:.1f} ms per view → 24 views of 320 outputs ≈ "
+              f"{(prep + 24 * per_view) * 320 / 60:.1f} min")
     for label, sel in (("smooth", times[: args.outputs]), ("rough", times[args.outputs :])):
         if sel:
             mean = float(np.mean(sel))
