@@ -88,6 +88,14 @@ def _mean(rows: list[dict], key: str) -> float | None:
     return float(np.mean(vals)) if vals else None
 
 
+def pick_outputs(outputs, limit: int | None) -> list:
+    """All outputs, or ``limit`` of them spread evenly over the protocol (output i·n // limit), in order."""
+    outputs = list(outputs)
+    if not limit or limit >= len(outputs):
+        return outputs
+    return [outputs[i * len(outputs) // limit] for i in range(limit)]
+
+
 def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int | None = None,
              device: str = "cpu", progress: Callable[[str], None] | None = None) -> dict:
     """Evaluate ``detailizer`` on ``protocol`` (first ``limit`` outputs if given).
@@ -96,6 +104,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
         protocol: a ``pipeline.eval_protocol.Protocol`` (already checked against the detailizer).
         detailizer: a pipeline Detailizer.
         style_set: the loaded ``pipeline.exemplars.StyleSet`` the protocol's styles come from.
+        limit: evaluate only this many outputs, spread evenly (``pick_outputs``).
         cls: "full", "quick" or "none".
         device: torch device for the LP search and the Cls classifier.
         progress: callable(line) for progress messages.
@@ -112,7 +121,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
     started = time.perf_counter()
     machine_start = machine_info(device)
     timer = _Timer({})
-    outputs = list(protocol.outputs[: limit if limit else None])
+    outputs = pick_outputs(protocol.outputs, limit)
     cls_cfg = CLS_VARIANTS.get(cls) if cls != "none" else None
     if cls != "none" and cls_cfg is None:
         raise ValueError(f"unknown Cls variant {cls!r}")

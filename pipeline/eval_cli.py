@@ -34,7 +34,7 @@ def eval_command(
                                                   "shipped model, or --checkpoint)."),
     protocol: Path = typer.Option(DEFAULT_PROTOCOL, "--protocol", help="Protocol .json (default: things_v1)."),
     out: Path = typer.Option(Path("out/eval"), "--out", "-o", help="Folder for eval.json and eval.md."),
-    limit: Optional[int] = typer.Option(None, "--limit", min=1, help="Only the first N outputs (quick checks)."),
+    limit: Optional[int] = typer.Option(None, "--limit", min=1, help="Only N outputs, spread evenly over the protocol (quick checks)."),
     cls: ClsChoice = typer.Option(ClsChoice.FULL, "--cls", help="Cls-score variant: full, quick or none."),
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda or cuda:N."),
     threads: Optional[int] = typer.Option(None, "--threads", min=1, help="CPU threads (default: every core)."),
@@ -82,7 +82,7 @@ def _eval(checkpoint, detailizer, protocol_path, out, limit, cls, device, thread
     if doc is not None:
         ensure_writable_dir(Path(doc).parent)
     say(f"protocol {protocol.name}: {len(protocol.outputs)} outputs"
-        + (f", evaluating the first {min(limit, len(protocol.outputs))}" if limit else "")
+        + (f", evaluating {min(limit, len(protocol.outputs))} spread over them" if limit else "")
         + f"; detailizer {det.name}; Cls {cls}; device {dev}, {torch.get_num_threads()} threads")
     style_set = resolve_protocol_set(protocol)
     missing = sorted({s for o in protocol.outputs for s in o.styles.values()} - {e.name for e in style_set.exemplars})

@@ -176,7 +176,7 @@ def test_eval_upsample_writes_json_and_markdown(tiny, tmp_path, tiny_cls):
     assert res.exit_code == 0, res.output
     report = json.loads((out / "eval.json").read_text())
     assert report["protocol"]["evaluated"] == 2 and report["protocol"]["outputs"] == 12
-    assert [r["id"] for r in report["outputs"]] == ["c0/00", "c0/01"]
+    assert [r["id"] for r in report["outputs"]] == ["c0/00", "c1/02"]  # spread over the protocol
     assert report["cls_variant"] == "quick" and report["cls"]["split"] == "views"
     assert report["cls"]["test_images"] == [3, 2]  # 3 exemplars and 2 outputs, 1 held-out view each
     # the baseline keeps the coarse structure exactly: its ×16 max-pool is the content
@@ -200,7 +200,8 @@ def test_eval_learned_checkpoint_without_cls(tiny, tmp_path):
     report = json.loads((tmp_path / "ev" / "eval.json").read_text())
     assert report["detailizer"]["name"] == "decollage" and report["cls"] is None
     assert report["cls_variant"] == "none" and report["means"]["cls"] is None
-    assert [r["mixed"] for r in report["outputs"]] == [False, False, True]  # 2 single, then mixed
+    assert [r["id"] for r in report["outputs"]] == ["c0/00", "c1/00", "c2/00"]
+    assert [r["mixed"] for r in report["outputs"]] == [False, False, False]
     assert "Cls variant: **none**" in (tmp_path / "ev" / "eval.md").read_text()
 
 
