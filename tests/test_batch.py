@@ -21,6 +21,7 @@ REPO = Path(__file__).resolve().parent.parent
 BATCH = """
 version: 1
 defaults:
+  detailize: {{detailizer: upsample}}
   export: {{max_triangles: 3000, preview_size_px: 96}}
 assets:
   - name: shroom

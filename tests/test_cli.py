@@ -17,6 +17,8 @@ RUNNER = CliRunner()
 
 TEXT_ASSET = """
 version: 1
+defaults:
+  detailize: {{detailizer: upsample}}
 assets:
   - name: word
     source: {{kind: text, text: {text}, size_m: {size}{extra}}}
@@ -31,6 +33,8 @@ def _text_recipe(text="Hi", size="0.2", extra=""):
 def _mesh_recipe(path: str) -> str:
     return f"""
 version: 1
+defaults:
+  detailize: {{detailizer: upsample}}
 assets:
   - name: thing
     source: {{kind: mesh, path: {path}}}

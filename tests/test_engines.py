@@ -18,6 +18,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 RECIPE = """
 version: 1
+defaults:
+  detailize: {{detailizer: upsample}}
 assets:
   - name: shroom
     source: {{kind: voxels, path: {npz}, voxel_size_m: 0.05}}

@@ -13,6 +13,7 @@ from pipeline.recipe import ExportFormat, FitMode, json_schema, load_recipe, par
 GOOD = """
 version: 1
 defaults:
+  detailize: {detailizer: upsample}
   export: {formats: [glb, obj], max_triangles: 5000}
   grid: {resolution: 12}
 assets:

@@ -11,6 +11,8 @@ from pipeline.recipe import parse_recipe
 
 MATRIX = """
 version: 1
+defaults:
+  detailize: {detailizer: upsample}
 assets:
   - name: word
     variants: {text: [CASTLE, "Tower!"], style: [stone, moss], seed: [0, 1]}
