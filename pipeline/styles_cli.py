@@ -111,7 +111,7 @@ def _report(result, warnings, sheet: bool, quiet: bool) -> None:
 
 @styles_app.command("build")
 def build_command(
-    set_name: str = typer.Argument(..., metavar="SET", help="A built-in set: furniture or things."),
+    set_name: str = typer.Argument(..., metavar="SET", help="A built-in set: furniture, things or monastery."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help=_OUT_HELP),
     force: bool = typer.Option(False, "--force", help="Rebuild even when the set file is up to date."),
     jobs: int = typer.Option(2, "--jobs", "-j", min=1, help="Worker processes voxelizing exemplars."),

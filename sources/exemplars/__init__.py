@@ -1,4 +1,5 @@
-"""Built-in style exemplar sets: ``furniture`` (chairs, tables) and ``things`` (buildings, plants, cakes, crystals).
+"""Built-in style exemplar sets: ``furniture`` (chairs, tables), ``things`` (buildings, plants, cakes,
+crystals) and ``monastery`` (real temple buildings read from the installed PyPI package ``pybullet``).
 
 Role: the registry ``BUILTIN_SETS``: set name → (vocabulary, function giving
 the ``ExemplarSpec`` list). Specs are cheap to list; meshes are only made when
@@ -34,9 +35,17 @@ def things_specs() -> list[ExemplarSpec]:
             for name, (category, fn, kw) in THINGS_CATALOGUE.items()]
 
 
+def monastery_specs() -> list[ExemplarSpec]:
+    """Temple buildings of pybullet_data's samurai_monastry.obj; ExemplarError when pybullet is not installed."""
+    from sources.exemplars.monastery import monastery_specs as specs
+
+    return specs()
+
+
 BUILTIN_SETS: dict[str, tuple[Vocabulary, Callable[[], list[ExemplarSpec]]]] = {
     "furniture": (FURNITURE, furniture_specs),
     "things": (THINGS, things_specs),
+    "monastery": (THINGS, monastery_specs),
 }
 
 
