@@ -4,6 +4,8 @@
 #   bash scripts/install.sh test       runtime + test tools + the cadquery runtime (so the
 #                                      tests also prove that the optional cadquery install works)
 #   bash scripts/install.sh cadquery   the optional cadquery runtime in .venv-cadquery
+#   bash scripts/install.sh exemplars  runtime + pybullet (103 MB wheel): its pybullet_data holds the
+#                                      model the 'monastery' style set is read from
 # torch is installed first and pinned, so pip takes the local CPU build
 # instead of pulling a multi-GB CUDA build; constraints.txt pins the rest.
 set -euo pipefail
@@ -27,6 +29,7 @@ quiet .venv/bin/python -m pip install --quiet --upgrade pip
 quiet .venv/bin/python -m pip install --quiet -c constraints.txt "torch==2.13.0"
 extra=""
 if [ "${1:-}" = "test" ]; then extra="[test]"; fi
+if [ "${1:-}" = "exemplars" ]; then extra="[exemplars]"; fi
 quiet .venv/bin/python -m pip install --quiet -c constraints.txt -e ".${extra}"
 # pip's resolver cannot see every conflict (ecosystem.md §1.1): prove the stack imports.
 quiet .venv/bin/python -c "import build123d, trimesh, torch, skimage, fast_simplification, fontTools, shapely, pipeline.cli; print('decollage environment ready: torch', torch.__version__, '| build123d', build123d.__version__)"
