@@ -35,6 +35,19 @@ def sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
+def code_digest(*modules: str) -> str:
+    """sha256 of project source files given relative to the repository root (``"pipeline/voxelize.py"``).
+
+    Part of cache keys whose results depend on that code: an edit to any of them
+    changes the key; other files do not matter.
+    """
+    root = Path(__file__).resolve().parent.parent
+    digest = hashlib.sha256()
+    for rel in modules:
+        digest.update(rel.encode() + b"\0" + (root / rel).read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
 def library_versions() -> dict[str, str]:
     versions = {}
     for name in KEY_LIBRARIES:

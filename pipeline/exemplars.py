@@ -42,6 +42,7 @@ import io
 import json
 import math
 import os
+import sys
 import time
 import zipfile
 from dataclasses import dataclass, field
@@ -50,7 +51,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
-from pipeline.cache import sha256_file
+from pipeline.cache import code_digest, sha256_file
 from pipeline.errors import DecollageError
 
 if TYPE_CHECKING:
@@ -354,22 +355,28 @@ def make_exemplar(spec: ExemplarSpec, vocabulary: Vocabulary, resolution: int = 
 # --------------------------------------------------------------------------- hashing and files
 
 
-def code_hash() -> str:
-    """sha256 of the code that makes exemplars (this module, the voxelizer, sources/exemplars)."""
+def code_hash(specs: Sequence[ExemplarSpec] = ()) -> str:
+    """sha256 of the code that makes the exemplars of ``specs``.
+
+    This module, the voxelizer and the primitives, plus the module of every spec's
+    ``make`` function (e.g. ``sources/exemplars/things.py``): editing one set's
+    designs, or adding a set, leaves the other sets' caches valid.
+    """
     root = Path(__file__).resolve().parent.parent
-    files = [root / "pipeline" / "exemplars.py", root / "pipeline" / "voxelize.py",
-             *sorted((root / "sources" / "exemplars").glob("*.py"))]
-    digest = hashlib.sha256()
-    for path in files:
-        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
-    return digest.hexdigest()
+    modules = {"pipeline/exemplars.py", "pipeline/voxelize.py", "sources/exemplars/prims.py"}
+    for spec in specs:
+        func = getattr(spec.make, "func", spec.make)  # functools.partial → the function
+        path = Path(getattr(sys.modules.get(getattr(func, "__module__", "")), "__file__", "") or "").resolve()
+        if path.is_file() and root in path.parents:
+            modules.add(path.relative_to(root).as_posix())
+    return code_digest(*sorted(modules))
 
 
 def inputs_hash(set_name: str, vocabulary: Vocabulary, specs: Sequence[ExemplarSpec], resolution: int) -> str:
     """The cache key of a set (see module docstring)."""
     record = {
         "format": FORMAT, "version": FORMAT_VERSION, "set": set_name, "resolution": resolution,
-        "vocabulary": vocabulary.to_json(), "code": code_hash(),
+        "vocabulary": vocabulary.to_json(), "code": code_hash(specs),
         "specs": [{"name": s.name, "category": s.category, "source": s.source, "licence": s.licence,
                    "attribution": s.attribution, "key": s.key,
                    "files": [sha256_file(Path(p)) for p in s.input_files]} for s in specs],

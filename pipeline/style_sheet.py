@@ -108,11 +108,9 @@ SHEET_HASH_KEY = "decollage-style-set"
 
 def _code_hash() -> str:
     """sha256 (16 hex digits) of the code that draws sheets: a new renderer redraws old sheets."""
-    import hashlib
-    from pathlib import Path
+    from pipeline.cache import code_digest
 
-    here = Path(__file__).resolve().parent
-    return hashlib.sha256((here / "style_sheet.py").read_bytes() + (here / "preview.py").read_bytes()).hexdigest()[:16]
+    return code_digest("pipeline/style_sheet.py", "pipeline/preview.py")[:16]
 
 
 def sheet_path(style_set: StyleSet) -> "Path":

@@ -31,7 +31,6 @@ Every problem is an ``ExemplarError`` naming the file, the exemplar and the fix.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import re
 from dataclasses import dataclass
@@ -39,6 +38,7 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
+from pipeline.cache import code_digest
 from pipeline.errors import DecollageError
 from pipeline.exemplars import RESOLUTION, BuildResult, ExemplarError, ExemplarSpec, Vocabulary, build_set, \
     set_path
@@ -260,15 +260,6 @@ def _gltf_buffers(file: Path) -> list[Path]:
     return out
 
 
-def _code_hash() -> str:
-    """sha256 of the code that reads user exemplars (this module, the mesh reader, the frames)."""
-    root = Path(__file__).resolve().parent.parent
-    digest = hashlib.sha256()
-    for rel in ("pipeline/user_exemplars.py", "sources/mesh.py", "sources/frames.py"):
-        digest.update(rel.encode() + b"\0" + (root / rel).read_bytes() + b"\0")
-    return digest.hexdigest()
-
-
 def folder_specs(folder: Path, vocabulary: Vocabulary, *, category: str | None = None,
                  licence: str = DEFAULT_LICENCE, up: str = "y") -> tuple[list[ExemplarSpec], list[str]]:
     """Every exemplar of ``folder`` as an ``ExemplarSpec`` (source "user"), checked; plus warnings.
@@ -278,7 +269,7 @@ def folder_specs(folder: Path, vocabulary: Vocabulary, *, category: str | None =
     """
     folder = Path(folder)
     entries, warnings = find_exemplars(folder)
-    code = _code_hash()
+    code = code_digest("pipeline/user_exemplars.py", "sources/mesh.py", "sources/frames.py")
     specs = []
     for entry in entries:
         raw = raw_parts(entry, up)
