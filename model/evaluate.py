@@ -116,6 +116,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
     from model.cls_score import CLS_VARIANTS, ViewBank, cls_score
     from model.metrics import lp_scores, strict_loose_iou, style_patch_dictionary
     from model.render_eval import render_views
+    from pipeline.eval_protocol import set_digest
 
     say = progress or (lambda line: None)
     started = time.perf_counter()
@@ -208,7 +209,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
         "detailizer": detailizer.describe(),
         "style_set": {"name": style_set.name, "inputs_hash": style_set.inputs_hash,
                       "exemplars": len(style_set.exemplars),
-                      "matches_protocol": style_set.inputs_hash == protocol.meta.get("style_set_hash")},
+                      "matches_protocol": set_digest(style_set) == protocol.meta.get("style_set_digest")},
         "cls_variant": cls_cfg.variant if cls_cfg else "none",
         "means": means,
         "groups": groups,
@@ -258,8 +259,8 @@ def markdown(report: dict) -> str:
               + f"; load average {mach.get('load_average_start')} at the start, {mach.get('load_average')} at the end.",
               ""]
     if not report["style_set"]["matches_protocol"]:
-        lines.insert(-1, "Note: the style set has changed since the protocol was made (regenerate it with "
-                         "`python benchmarks/make_protocol.py`).")
+        lines.insert(-1, "Note: the style set's exemplars differ from those the protocol was made from "
+                         "(regenerate it with `python benchmarks/make_protocol.py`).")
     return "\n".join(lines)
 
 

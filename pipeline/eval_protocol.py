@@ -381,7 +381,7 @@ def write_protocol(name: str, folder: Path, set_name: str, style_set, made: list
         outputs += [{"id": f"{cid}/{k:02d}", "content": cid, "styles": row} for k, row in enumerate(rows)]
     meta = {
         "format": FORMAT, "version": FORMAT_VERSION, "name": name, "style_set": set_name,
-        "style_set_hash": style_set.inputs_hash, "parts": list(parts), "styles": styles,
+        "style_set_digest": set_digest(style_set), "parts": list(parts), "styles": styles,
         "seed": seed, "n_single": n_single, "n_mixed": n_mixed,
         "contents_file": f"{name}.npz", "contents_sha256": hashlib.sha256(data).hexdigest(),
         "made_by": "python benchmarks/make_protocol.py",
@@ -393,6 +393,18 @@ def write_protocol(name: str, folder: Path, set_name: str, style_set, made: list
     json_path = Path(folder) / f"{name}.json"
     write_bytes_atomic(json_path, _format_json(meta).encode())
     return json_path
+
+
+def set_digest(style_set) -> str:
+    """sha256 of a style set's exemplars (names, categories, offsets, label arrays): its geometry.
+
+    Unlike the set's ``inputs_hash`` it does not change when only code changes.
+    """
+    h = hashlib.sha256()
+    for ex in style_set.exemplars:
+        h.update(json.dumps([ex.name, ex.category, list(ex.offset), list(ex.labels.shape)]).encode())
+        h.update(np.ascontiguousarray(ex.labels).tobytes())
+    return h.hexdigest()
 
 
 def resolve_protocol_set(protocol: Protocol):

@@ -185,6 +185,7 @@ def test_eval_upsample_writes_json_and_markdown(tiny, tmp_path, tiny_cls):
         assert 0.0 <= report["means"][key] <= 1.0
     assert all(0.0 <= r["cls_fake_acc"] <= 1.0 for r in report["outputs"])
     assert report["machine"]["cpu_count"] >= 1 and report["timings"]["total_s"] > 0
+    assert report["style_set"]["matches_protocol"] is True
     md = (out / "eval.md").read_text()
     assert "| detailizer | outputs | Strict-IOU | Loose-IOU | LP-IOU | LP-F | Cls |" in md
     assert "| upsample | 2 | 1.000 | 1.000 |" in md and "Cls variant: **quick**" in md
