@@ -27,8 +27,11 @@ a few minutes), and all recorded in ``ClsResult``:
 * base width 8 instead of 16.
 
 Variants (``CLS_VARIANTS``): ``full`` = 24 views a shape (16 train, 8 test),
-``quick`` = 8 views (6 train, 2 test) and fewer steps, for checks during
-development. A figure must say which one it used (``ClsResult.variant``).
+1000 steps of 32 + 32 crops; ``quick`` = 8 views (6 train, 2 test), 150
+steps, for checks during development. A figure must say which one it used
+(``ClsResult.variant``). Measured (full, 20 exemplars + 320 outputs, one
+thread, 2 cores shared with a training job): 84 s training + 6 s testing;
+rendering the 8160 views ~20 ms each.
 """
 
 from __future__ import annotations
