@@ -182,7 +182,8 @@ def build(
 
         Console(highlight=False).print(_summary_table(reports, out))
         cached = sum(r.cached for r in reports)
-        _stderr().print(f"{len(reports) - cached} built, {cached} up to date (cached), "
+        built = sum(r.status == "built" and not r.cached for r in reports)
+        _stderr().print(f"{built} built, {cached} up to date (cached), "
                         f"{sum(r.status == 'failed' for r in reports)} failed in {wall:.1f} s")
     failed = [r for r in reports if r.status != "built"]
     if failed:

@@ -143,6 +143,7 @@ def test_one_bad_asset_does_not_stop_the_others(write_recipe, tmp_path):
     out = tmp_path / "out"
     code, stdout, stderr = _run(["build", recipe, "-o", out])
     assert code == 1
+    assert "1 built, 0 up to date (cached), 1 failed" in stderr  # a failed asset is not counted as built
     assert _files(out) == [".decollage", "manifest.json", "word.glb", "word.png"]  # .decollage: build records
     summary = json.loads((out / "manifest.json").read_text())["summary"]
     assert summary == {"assets": 2, "built": 1, "failed": 1}
