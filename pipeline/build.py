@@ -127,14 +127,17 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
 def plan_build(loaded: LoadedRecipe, out_dir: Path, detailizer_override: str | None = None,
                only: Callable[[Asset], bool] | None = None, force: bool = False) -> list[PlannedAsset]:
     """Content keys of the selected assets, and which of them are up to date in ``out_dir``."""
+    from pipeline.detailize import effective_checkpoint
+
     planned = []
     for i, asset in enumerate(loaded.recipe.assets):
         if only is not None and not only(asset):
             continue
         inputs = {n: sha256_file(p) for n, p in _input_files(asset, loaded).items()}
         name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
+        weights = effective_checkpoint(name, checkpoint)
         key = asset_key(asset.model_dump(mode="json", by_alias=True), inputs,
-                        sha256_file(Path(checkpoint)) if checkpoint else None, name)
+                        sha256_file(Path(weights)) if weights and Path(weights).is_file() else None, name)
         cached = None if force else valid_record(out_dir, asset.name, key)
         planned.append(PlannedAsset(i, asset.name, key, cached))
     return planned

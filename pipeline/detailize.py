@@ -33,11 +33,32 @@ REGISTRY: dict[str, str] = {
     "decollage": "model.infer:DecollageDetailizer",
 }
 
+#: name → "module:ATTRIBUTE" of the checkpoint file a learned detailizer loads when a recipe names none
+#: (the model shipped in the repo).
+DEFAULT_CHECKPOINTS: dict[str, str] = {
+    "decollage": "model.infer:DEFAULT_CHECKPOINT",
+}
+
+#: The detailizer of an asset whose recipe names none: the shipped learned model.
+DEFAULT_DETAILIZER = "decollage"
+
 _CACHE: dict[tuple, Detailizer] = {}
 
 
 def known_detailizers() -> list[str]:
     return sorted(REGISTRY)
+
+
+def effective_checkpoint(name: str, checkpoint: str | None) -> str | None:
+    """The checkpoint file detailizer ``name`` will load: ``checkpoint`` if given, else its shipped default.
+
+    None for detailizers without weights (``upsample``). Used for cache keys, so that
+    replacing the shipped weights rebuilds every asset made with them.
+    """
+    if checkpoint is not None or name not in DEFAULT_CHECKPOINTS:
+        return checkpoint
+    module_name, attr = DEFAULT_CHECKPOINTS[name].split(":")
+    return str(getattr(importlib.import_module(module_name), attr))
 
 
 def get_detailizer(name: str, checkpoint: str | None = None, device: str = "auto") -> Detailizer:

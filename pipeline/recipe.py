@@ -28,6 +28,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
+from pipeline.detailize import DEFAULT_DETAILIZER
 from pipeline.errors import RecipeError
 
 SCHEMA_VERSION = 1
@@ -367,7 +368,8 @@ class RegionRule(_Strict):
 
 
 class DetailizeSettings(_Strict):
-    detailizer: str = Field("upsample", description="'upsample' (non-learned baseline) or a registered detailizer.")
+    detailizer: str = Field(DEFAULT_DETAILIZER, description="'decollage' (the learned model; the shipped weights "
+                            "unless 'checkpoint' names others) or 'upsample' (the non-learned baseline).")
     checkpoint: Optional[str] = Field(None, description="Checkpoint file for a learned detailizer.")
     seed: int = Field(0, ge=0)
     device: Literal["auto", "cpu", "cuda"] = "auto"

@@ -164,3 +164,30 @@ def test_unreachable_cluster_fails_fast_and_clearly(batch, tmp_path):
     result = _cli("build", batch, "-o", tmp_path / "out", "--executor", "dask", "--address", "tcp://127.0.0.1:9")
     assert result.exit_code == 2 and time.time() - started < 30
     assert "cannot reach the Dask scheduler" in result.stderr
+
+
+def test_default_detailizer_key_covers_the_shipped_weights(write_recipe, tmp_path, monkeypatch):
+    """An asset that names no checkpoint is rebuilt when the shipped model's bytes change."""
+    from pipeline.build import plan_build
+    from pipeline.recipe import load_recipe
+
+    weights = tmp_path / "things.pt"
+    monkeypatch.setattr("model.infer.DEFAULT_CHECKPOINT", weights)
+    recipe = write_recipe("""
+version: 1
+assets:
+  - name: letter
+    source: {kind: text, text: A, size_m: 0.2}
+    regions: [{part: bottom, style: tower}]
+""")
+    loaded = load_recipe(recipe)
+    assert loaded.recipe.assets[0].detailize.detailizer == "decollage"  # the shipped model is the default
+
+    def key():
+        return plan_build(loaded, tmp_path / "out")[0].key
+
+    weights.write_bytes(b"weights v1")
+    first = key()
+    assert key() == first
+    weights.write_bytes(b"weights v2")
+    assert key() != first
