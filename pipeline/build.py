@@ -129,15 +129,16 @@ def plan_build(loaded: LoadedRecipe, out_dir: Path, detailizer_override: str | N
     """Content keys of the selected assets, and which of them are up to date in ``out_dir``."""
     from pipeline.detailize import effective_checkpoint
 
-    planned = []
+    planned, weight_hashes = [], {}
     for i, asset in enumerate(loaded.recipe.assets):
         if only is not None and not only(asset):
             continue
         inputs = {n: sha256_file(p) for n, p in _input_files(asset, loaded).items()}
         name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
         weights = effective_checkpoint(name, checkpoint)
-        key = asset_key(asset.model_dump(mode="json", by_alias=True), inputs,
-                        sha256_file(Path(weights)) if weights and Path(weights).is_file() else None, name)
+        if weights not in weight_hashes:  # hashed once a build, not once an asset (a batch shares one model)
+            weight_hashes[weights] = sha256_file(Path(weights)) if weights and Path(weights).is_file() else None
+        key = asset_key(asset.model_dump(mode="json", by_alias=True), inputs, weight_hashes[weights], name)
         cached = None if force else valid_record(out_dir, asset.name, key)
         planned.append(PlannedAsset(i, asset.name, key, cached))
     return planned
@@ -320,9 +321,11 @@ def build_recipe(loaded: LoadedRecipe, out_dir: Path, progress: Progress | None 
     progress = progress or Progress()
     executor = executor or LocalExecutor(progress)
     check_recipe(loaded, detailizer_override)
+    plan = plan_build(loaded, out_dir, detailizer_override, only, force)
+    if any(p.cached_entry is None for p in plan):
+        executor.start()  # e.g. connect to a cluster: failing here must leave out_dir untouched
     ensure_writable_dir(out_dir)
     remove_stale_temporaries(out_dir)
-    plan = plan_build(loaded, out_dir, detailizer_override, only, force)
     reports: dict[int, AssetReport] = {}
     for p in plan:
         if p.cached_entry is not None:

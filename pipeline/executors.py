@@ -54,6 +54,9 @@ class LocalExecutor:
     def __init__(self, progress=None) -> None:
         self.progress = progress
 
+    def start(self) -> None:
+        """Nothing to connect to (every executor has ``start``: the build calls it before writing anything)."""
+
     def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = ()) -> None:
         for n, args in enumerate(tasks):
             if self.progress is not None:
@@ -68,6 +71,9 @@ class ProcessExecutor:
         if jobs < 1:
             raise UsageError(f"--jobs must be at least 1, got {jobs}")
         self.jobs = jobs
+
+    def start(self) -> None:
+        """Workers start inside ``run``; nothing can fail before it."""
 
     def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = ()) -> None:
         import multiprocessing
@@ -99,18 +105,32 @@ class DaskExecutor:
             raise UsageError("--executor dask needs --address (e.g. tcp://scheduler:8786)")
         self.address = address
         self.gpus_per_task = gpus_per_task
+        self._client = None
 
-    def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = ()) -> None:
+    def start(self) -> None:
+        """Connect to the scheduler; a ``UsageError`` within ``CONNECT_TIMEOUT_S`` when it cannot be reached.
+
+        The build calls this before it writes anything, so an unreachable cluster leaves the
+        output folder (and its manifest) as it was.
+        """
+        if self._client is not None:
+            return
         try:
-            from distributed import Client, as_completed
+            from distributed import Client
         except ImportError:
             raise UsageError("the dask executor needs the 'distributed' package",
                              hint="pip install 'decollage[cluster]' (or: pip install distributed)") from None
         try:
-            client = Client(self.address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+            self._client = Client(self.address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
         except (OSError, TimeoutError) as exc:
             raise UsageError(f"cannot reach the Dask scheduler at {self.address} within {CONNECT_TIMEOUT_S} s "
                              f"({type(exc).__name__})", hint="check --address and that the scheduler runs") from None
+
+    def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = ()) -> None:
+        from distributed import as_completed
+
+        self.start()
+        client, self._client = self._client, None
         resources = {"GPU": self.gpus_per_task} if self.gpus_per_task else None
         try:
             futures = [client.submit(fn, *args, key=f"decollage-{names[i] if names else i}-{args[3][:12]}",

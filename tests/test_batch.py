@@ -69,6 +69,13 @@ def test_list_shows_the_expansion(batch):
     assert rows[-1] == {"name": "letter", "recipe_field": "assets[1]", "source": "text", "variant": None}
 
 
+def test_showcase_batch_expands_to_at_least_48_assets():
+    result = _cli("build", REPO / "recipes" / "batch_showcase.yaml", "--list", "--json")
+    assert result.exit_code == 0, result.stderr
+    names = [r["name"] for r in json.loads(result.stdout)]
+    assert len(names) >= 48 and len(set(names)) == len(names)
+
+
 def test_second_build_is_cached_and_identical(batch, tmp_path):
     out = tmp_path / "out"
     assert _cli("build", batch, "-o", out, "--check").exit_code == 1  # nothing built yet: stale
@@ -160,10 +167,15 @@ def test_dask_executor_matches_the_local_build(batch, tmp_path):
 
 
 def test_unreachable_cluster_fails_fast_and_clearly(batch, tmp_path):
+    out = tmp_path / "out"
+    _json("build", batch, "-o", out, "--only", "letter")
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    batch.write_text(batch.read_text().replace("text: A,", "text: B,"))  # stale: the cluster is needed
     started = time.time()
-    result = _cli("build", batch, "-o", tmp_path / "out", "--executor", "dask", "--address", "tcp://127.0.0.1:9")
+    result = _cli("build", batch, "-o", out, "--executor", "dask", "--address", "tcp://127.0.0.1:9")
     assert result.exit_code == 2 and time.time() - started < 30
     assert "cannot reach the Dask scheduler" in result.stderr
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before  # manifest kept as it was
 
 
 def test_default_detailizer_key_covers_the_shipped_weights(write_recipe, tmp_path, monkeypatch):

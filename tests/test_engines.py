@@ -101,7 +101,7 @@ def test_unknown_profile_is_a_recipe_error(tmp_path):
     assert "'generic'" in result.stderr
 
 
-@pytest.mark.parametrize("profile", ["unreal", "generic"])
+@pytest.mark.parametrize("profile", ["unreal", "generic", "unity", "godot"])
 def test_engine_glbs_pass_the_khronos_validator(tmp_path, profile):
     from tests.gltf_validator import validate_glbs
 
