@@ -5,6 +5,8 @@ Run from the repository root:
 
 Each build runs the real CLI in a fresh process into a fresh temporary folder,
 so the figures include imports and worker start-up, as a user would see them.
+Peak memory: the CLI process's own peak RSS (it builds in-process with --jobs 1)
+and the peak RSS of its largest worker process (--jobs 2), from getrusage.
 """
 
 from __future__ import annotations
@@ -20,12 +22,30 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
+#: Runs the CLI and, at exit, records the peak RSS of this process and of its largest worker process.
+_WRAPPER = """
+import atexit, json, os, resource, sys
+def _rss():
+    with open(os.environ["DECOLLAGE_BENCH_RSS"], "w") as f:
+        json.dump({"main_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                   "worker_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024}, f)
+atexit.register(_rss)
+sys.argv = ["decollage", *sys.argv[1:]]
+from pipeline.cli import main
+main()
+"""
+
+
 def build(recipe: Path, out: Path, *extra: str) -> dict:
-    cmd = [sys.executable, "-m", "pipeline.cli", "build", str(recipe), "-o", str(out), "--json", "--quiet", *extra]
-    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, check=False)
+    rss = out.parent / f"{out.name}.rss.json"
+    cmd = [sys.executable, "-c", _WRAPPER, "build", str(recipe), "-o", str(out), "--json", "--quiet", *extra]
+    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, check=False,
+                          env={**os.environ, "DECOLLAGE_BENCH_RSS": str(rss)})
     if proc.returncode != 0:
         raise SystemExit(proc.stderr[-2000:])
-    return json.loads(proc.stdout)
+    summary = json.loads(proc.stdout)
+    summary["rss"] = json.loads(rss.read_text())
+    return summary
 
 
 def main() -> None:
@@ -38,10 +58,14 @@ def main() -> None:
         same = all((Path(tmp) / "j1" / f"{a['name']}.glb").read_bytes() == (Path(tmp) / "j2" / f"{a['name']}.glb").read_bytes()
                    for a in one["assets"])
     n = one["summary"]["assets"]
-    print(f"| run | assets | wall time (s) |\n|---|---|---|")
-    print(f"| --jobs 1 | {n} | {one['wall_time_s']:.1f} |")
-    print(f"| --jobs 2 | {n} | {two['wall_time_s']:.1f} |")
-    print(f"| second run (cached) | {cached['summary']['cached']} cached | {cached['wall_time_s']:.2f} |")
+    def mb(run: dict) -> str:
+        return f"{run['rss']['main_mb']:.0f} | {run['rss']['worker_mb']:.0f}"
+
+    print("| run | assets | wall time (s) | peak RSS main process (MB) | peak RSS largest worker (MB) |")
+    print("|---|---|---|---|---|")
+    print(f"| --jobs 1 | {n} | {one['wall_time_s']:.1f} | {mb(one)} |")
+    print(f"| --jobs 2 | {n} | {two['wall_time_s']:.1f} | {mb(two)} |")
+    print(f"| second run (cached) | {cached['summary']['cached']} cached | {cached['wall_time_s']:.2f} | {mb(cached)} |")
     print(f"\nspeed-up of --jobs 2 over --jobs 1: {one['wall_time_s'] / two['wall_time_s']:.2f}x; "
           f"cached run: {100 * cached['wall_time_s'] / two['wall_time_s']:.1f} % of the first; "
           f"GLBs byte-identical across --jobs: {same}")
