@@ -5,7 +5,9 @@
 #                                      tests also prove that the optional cadquery install works)
 #   bash scripts/install.sh cadquery   the optional cadquery runtime in .venv-cadquery
 #   bash scripts/install.sh exemplars  runtime + pybullet (103 MB wheel): its pybullet_data holds the
-#                                      model the 'monastery' style set is read from
+#                                      model the 'monastery' style set is read from; and the Debian
+#                                      package sweethome3d-furniture (120 MB, no dependencies; apt-get,
+#                                      as root) the 'sweethome' set is read from
 # torch is installed first and pinned, so pip takes the local CPU build
 # instead of pulling a multi-GB CUDA build; constraints.txt pins the rest.
 set -euo pipefail
@@ -31,6 +33,14 @@ extra=""
 if [ "${1:-}" = "test" ]; then extra="[test]"; fi
 if [ "${1:-}" = "exemplars" ]; then extra="[exemplars]"; fi
 quiet .venv/bin/python -m pip install --quiet -c constraints.txt -e ".${extra}"
+if [ "${1:-}" = "exemplars" ] && [ ! -d /usr/share/sweethome3d/furniture ]; then
+    if command -v apt-get >/dev/null && [ "$(id -u)" = "0" ]; then
+        apt-get update -qq && apt-get install -y -qq sweethome3d-furniture
+    else
+        echo "the 'sweethome' style set needs the Debian package sweethome3d-furniture:" \
+             "run: sudo apt-get install -y sweethome3d-furniture" >&2
+    fi
+fi
 # pip's resolver cannot see every conflict (ecosystem.md §1.1): prove the stack imports.
 quiet .venv/bin/python -c "import build123d, trimesh, torch, skimage, fast_simplification, fontTools, shapely, pipeline.cli; print('decollage environment ready: torch', torch.__version__, '| build123d', build123d.__version__)"
 if [ "${1:-}" = "test" ]; then

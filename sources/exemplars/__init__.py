@@ -1,5 +1,6 @@
 """Built-in style exemplar sets: ``furniture`` (chairs, tables), ``things`` (buildings, plants, cakes,
-crystals) and ``monastery`` (real temple buildings read from the installed PyPI package ``pybullet``).
+crystals), ``monastery`` (real temple buildings read from the installed PyPI package ``pybullet``) and
+``sweethome`` (real chairs and tables read from the installed Debian package ``sweethome3d-furniture``).
 
 Role: the registry ``BUILTIN_SETS``: set name → (vocabulary, function giving
 the ``ExemplarSpec`` list). Specs are cheap to list; meshes are only made when
@@ -42,10 +43,18 @@ def monastery_specs() -> list[ExemplarSpec]:
     return specs()
 
 
+def sweethome_specs() -> list[ExemplarSpec]:
+    """Chairs and tables of sweethome3d-furniture; ExemplarError when the package is not installed."""
+    from sources.exemplars.sweethome import sweethome_specs as specs
+
+    return specs()
+
+
 BUILTIN_SETS: dict[str, tuple[Vocabulary, Callable[[], list[ExemplarSpec]]]] = {
     "furniture": (FURNITURE, furniture_specs),
     "things": (THINGS, things_specs),
     "monastery": (THINGS, monastery_specs),
+    "sweethome": (FURNITURE, sweethome_specs),
 }
 
 

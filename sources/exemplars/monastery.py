@@ -465,6 +465,29 @@ def box_mesh(occ: np.ndarray, origin: np.ndarray, voxel: float) -> tuple[np.ndar
     return vertices, faces.astype(np.int64)
 
 
+def cube_part_meshes(occupancies: Mapping[str, np.ndarray], origin: np.ndarray, voxel: float,
+                     dims: tuple) -> dict[str, "trimesh.Trimesh"]:
+    """{part: surface of its voxel cubes} for the parts that occupy a voxel (``lattice``'s grid).
+
+    The first part's mesh also carries the pins: two degenerate triangles at
+    the grid's corners, so that the handed-over bounding box equals the grid
+    (they cover no voxel-centre sample).
+    """
+    import trimesh
+
+    parts: dict[str, "trimesh.Trimesh"] = {}
+    for part, occ in occupancies.items():
+        if not occ.any():
+            continue
+        vertices, tris = box_mesh(occ, origin, voxel)
+        if not parts:
+            pins = np.array([origin] * 3 + [origin + np.asarray(dims) * voxel] * 3)
+            tris = np.concatenate([tris, len(vertices) + np.arange(6).reshape(2, 3)])
+            vertices = np.concatenate([vertices, pins])
+        parts[part] = trimesh.Trimesh(vertices=vertices, faces=tris, process=False)
+    return parts
+
+
 def building_parts(name: str, path: Path | None = None, resolution: int = RESOLUTION,
                    buildings: Mapping[str, Building] = BUILDINGS,
                    roof_materials: frozenset[str] | set[str] = ROOF_MATERIALS) -> dict[str, "trimesh.Trimesh"]:
@@ -479,10 +502,8 @@ def building_parts(name: str, path: Path | None = None, resolution: int = RESOLU
     surface of its voxel cubes: the voxelizer's samples are those cubes'
     centres, so it gets back this occupancy unchanged. Two degenerate
     triangles at the grid's corners keep the handed-over bounding box equal to
-    the grid (they cover no sample).
+    the grid (they cover no sample; ``cube_part_meshes``).
     """
-    import trimesh
-
     obj = read_obj(path or find_obj())
     building = buildings[name]
     faces = split_buildings(obj, {name: building})[name]
@@ -490,16 +511,7 @@ def building_parts(name: str, path: Path | None = None, resolution: int = RESOLU
     corners = obj.vertices[obj.faces[faces]].reshape(-1, 3)
     origin, voxel, dims = lattice(corners.min(axis=0), corners.max(axis=0), resolution)
     body_occ, roof_occ = labelled_fill(obj, faces, roof, origin, voxel, dims)
-    parts: dict[str, "trimesh.Trimesh"] = {}
-    for part, occ in (("body", body_occ), ("roof", roof_occ)):
-        if not occ.any():
-            continue
-        vertices, tris = box_mesh(occ, origin, voxel)
-        if not parts:  # the pins: degenerate triangles at the grid's two corners
-            pins = np.array([origin] * 3 + [origin + np.asarray(dims) * voxel] * 3)
-            tris = np.concatenate([tris, len(vertices) + np.arange(6).reshape(2, 3)])
-            vertices = np.concatenate([vertices, pins])
-        parts[part] = trimesh.Trimesh(vertices=vertices, faces=tris, process=False)
+    parts = cube_part_meshes({"body": body_occ, "roof": roof_occ}, origin, voxel, dims)
     if not parts:
         raise ExemplarError(f"building '{name}' fills no voxel at {resolution}³", field=name,
                             hint="its faces are thinner than a voxel; raise the resolution")
