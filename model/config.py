@@ -1,8 +1,8 @@
 """Every size and weight of the DECOLLAGE detailizer in one frozen, JSON-able config.
 
 ``ModelConfig`` describes the generator (backbone at the coarse resolution, then
-one doubling level per entry of ``levels``), one discriminator per level, and the
-loss weights. Two named layouts exist:
+one doubling level per entry of ``levels``), one discriminator per supervised level
+(every level, or only the last one with ``pyramid=False``), and the loss weights. Two named layouts exist:
 
 - ``ModelConfig.lean(P, N)``: the CPU default (about 1.1 M generator parameters;
   no 3×3×3 convolution at the finest resolution, sub-pixel "voxel shuffle" for the
@@ -184,9 +184,20 @@ class ModelConfig:
         backbone_widths: output channels of the 3×3×3 backbone convs at coarse resolution.
         backbone_dilations: dilation of each backbone conv (same length).
         levels: one ``LevelSpec`` per doubling level; output factor = 2**len(levels).
-        discriminators: one ``DiscriminatorSpec`` per level.
+        discriminators: one ``DiscriminatorSpec`` per supervised level (``supervised_levels``).
         style_dim: length of each style code z (8).
         use_part_labels: False = the "w/o part labels" ablation (no part one-hot inputs).
+        pyramid: True (the full model) = every level has an occupancy head, is returned,
+            reconstructed and judged by its own discriminator. False = the "no pyramid"
+            layout of Table 4 (a) / DECOR-GAN*: the generator still doubles
+            ``len(levels)`` times, but only the last level has a head (the others'
+            ``head_kernel`` is unused), so ``forward`` returns one ×16 grid, and there is
+            one discriminator, the last level's. The structure losses then compare that
+            output with the coarse input directly (max-pool / nearest by the whole
+            factor); set γ_down = γ_up = 0 to drop them, as DECOR-GAN* does
+            (``model.ablations``). ``supervised_levels`` lists the levels with a head.
+            Checkpoints written before this switch existed have no ``pyramid`` key and
+            are read as ``True`` (they can only be full pyramids; format version 1).
         leaky_slope: LeakyReLU slope everywhere (0.02).
         clamp_slope: slope of the output's leaky clamp outside [0, 1] (0.002).
         losses: loss weights and variants.
@@ -200,6 +211,7 @@ class ModelConfig:
     discriminators: tuple[DiscriminatorSpec, ...]
     style_dim: int = 8
     use_part_labels: bool = True
+    pyramid: bool = True
     leaky_slope: float = 0.02
     clamp_slope: float = 0.002
     losses: LossConfig = field(default_factory=LossConfig)
@@ -295,6 +307,20 @@ class ModelConfig:
         return len(self.levels)
 
     @property
+    def supervised_levels(self) -> tuple[int, ...]:
+        """Indices of the levels with an occupancy head, in order: the generator's outputs,
+        each judged by ``discriminators[k]`` for the k-th of them (all levels, or the last)."""
+        return tuple(range(self.n_levels)) if self.pyramid else (self.n_levels - 1,)
+
+    def discriminator(self, level: int) -> DiscriminatorSpec:
+        """The spec of the discriminator judging generator level ``level`` (a supervised level)."""
+        return self.discriminators[self.supervised_levels.index(level)]
+
+    def without_pyramid(self) -> "ModelConfig":
+        """The same generator with only its last level supervised, and only the last level's discriminator."""
+        return dataclasses.replace(self, pyramid=False, discriminators=self.discriminators[-1:])
+
+    @property
     def factor(self) -> int:
         """Total upsampling factor (16 for four levels)."""
         return 2 ** len(self.levels)
@@ -320,6 +346,8 @@ class ModelConfig:
             ),
             style_dim=r.int("style_dim"),
             use_part_labels=r.bool("use_part_labels"),
+            # absent from checkpoints written before the switch, which are all full pyramids
+            pyramid=r.bool("pyramid", default=True),
             leaky_slope=r.float("leaky_slope"),
             clamp_slope=r.float("clamp_slope"),
             losses=_losses_from(r.get("losses"), f"{path}.losses"),
@@ -370,13 +398,17 @@ def _validate(cfg: ModelConfig) -> None:
                 )
         elif lv.head_kernel < 0 or lv.head_kernel % 2 == 0:
             raise _bad(f"level {i}: head_kernel {lv.head_kernel} must be odd or 0", f"{where}.head_kernel", "use 1 or 3")
-    if len(cfg.discriminators) != len(cfg.levels):
+    if not isinstance(cfg.pyramid, bool):
+        raise _bad(f"pyramid must be true/false, got {cfg.pyramid!r}", "pyramid", "use a boolean")
+    supervised = cfg.supervised_levels
+    if len(cfg.discriminators) != len(supervised):
         raise _bad(
-            f"{len(cfg.discriminators)} discriminators for {len(cfg.levels)} levels",
+            f"{len(cfg.discriminators)} discriminators for {len(supervised)} supervised levels",
             "discriminators",
-            "give one discriminator per level",
+            "give one discriminator per level" if cfg.pyramid
+            else "without the pyramid only the last level has one (ModelConfig.without_pyramid())",
         )
-    for i, d in enumerate(cfg.discriminators):
+    for i, (level, d) in enumerate(zip(supervised, cfg.discriminators)):
         where = f"discriminators[{i}]"
         if not d.layers:
             raise _bad("a discriminator needs at least one conv", where, "see ModelConfig.paper()")
@@ -389,9 +421,9 @@ def _validate(cfg: ModelConfig) -> None:
                 where,
                 "need (RF − stride) divisible by 2·stride, e.g. RF 7/9 at stride 1, RF 18 at stride 2",
             )
-        if (2 ** (i + 1)) % d.stride():
+        if (2 ** (level + 1)) % d.stride():
             raise _bad(
-                f"stride {d.stride()} exceeds the level's upsampling factor {2 ** (i + 1)}",
+                f"stride {d.stride()} exceeds the level's upsampling factor {2 ** (level + 1)}",
                 where,
                 "use a smaller stride at the first levels",
             )
@@ -420,6 +452,9 @@ def _to_plain(obj: Any) -> Any:
     return obj
 
 
+_MISSING = object()
+
+
 class _Reader:
     """Strict reader of one JSON object: every key must be read exactly once, types are not coerced."""
 
@@ -428,8 +463,11 @@ class _Reader:
             raise _bad(f"expected an object, got {type(data).__name__}", path, "re-save the checkpoint")
         self.data, self.path, self.seen = data, path, set()
 
-    def get(self, key: str) -> Any:
+    def get(self, key: str, default: Any = _MISSING) -> Any:
+        """The value of ``key``; a missing key is an error unless a ``default`` is given (keys added later)."""
         if key not in self.data:
+            if default is not _MISSING:
+                return default
             raise _bad(f"missing key {key!r}", f"{self.path}.{key}", "the checkpoint is from another version")
         self.seen.add(key)
         return self.data[key]
@@ -446,8 +484,8 @@ class _Reader:
             raise _bad(f"expected a number, got {v!r}", f"{self.path}.{key}", "use a number")
         return float(v)
 
-    def bool(self, key: str) -> bool:
-        v = self.get(key)
+    def bool(self, key: str, default: Any = _MISSING) -> bool:
+        v = self.get(key, default)
         if not isinstance(v, bool):
             raise _bad(f"expected true/false, got {v!r}", f"{self.path}.{key}", "use a boolean")
         return v

@@ -97,6 +97,7 @@ def down_loss(
     stop_gradient: bool = True,
     high: float = 0.6,
     iso: float = ISO_LEVEL,
+    factor: int = 2,
 ) -> Tensor:
     """Structure-preserving downsampling loss between level j+1 (``fine``) and level j (``coarse``).
 
@@ -108,35 +109,40 @@ def down_loss(
 
     Args:
         fine: (B, 1, 2X, 2Y, 2Z); coarse: (B, 1, X, Y, Z) (the binary input for the first level).
+        factor: resolution ratio of ``fine`` to ``coarse`` (2 in the pyramid; 16 without it, the
+            ×16 output against the coarse input): the pools above are by ``factor``.
     """
     prev = coarse.detach() if stop_gradient else coarse
-    mx = F.max_pool3d(fine, 2)
+    mx = F.max_pool3d(fine, factor)
     if variant is DownLoss.PAPER_MSE:
         return F.mse_loss(mx, prev)
-    avg = F.avg_pool3d(fine, 2)
+    avg = F.avg_pool3d(fine, factor)
     on = prev > iso
     fill = (1 - avg) ** 2 * (mx <= high)
     clear = avg**2 * (mx >= iso)
     return torch.where(on, fill, clear).mean()
 
 
-def up_loss(fine: Tensor, coarse: Tensor, stop_gradient: bool = True) -> Tensor:
-    """mean((fine − sg(nearest₂(coarse)))²); fine (B, 1, 2X, 2Y, 2Z), coarse (B, 1, X, Y, Z)."""
+def up_loss(fine: Tensor, coarse: Tensor, stop_gradient: bool = True, factor: int = 2) -> Tensor:
+    """mean((fine − sg(nearest_f(coarse)))²); fine (B, 1, fX, fY, fZ), coarse (B, 1, X, Y, Z), f = ``factor``."""
     prev = coarse.detach() if stop_gradient else coarse
-    return F.mse_loss(fine, F.interpolate(prev, scale_factor=2, mode="nearest"))
+    return F.mse_loss(fine, F.interpolate(prev, scale_factor=factor, mode="nearest"))
 
 
 def structure_losses(outputs: Sequence[Tensor], coarse_input: Tensor, lc: LossConfig) -> dict[str, Tensor]:
-    """L_down and L_up summed over all levels, the first against the coarse input (B, 1, X, Y, Z).
+    """L_down and L_up summed over all outputs, each against the one before, the first against the coarse input.
 
-    Returns ``down``/``up`` (un-weighted sums), ``down{j}``/``up{j}`` per level, and
-    ``total`` = γ_down·down + γ_up·up.
+    ``outputs`` are the generator's (every level, or only the last without the pyramid:
+    then the ×16 output is compared with the coarse input (B, 1, X, Y, Z) directly); the
+    pooling factor is the resolution ratio of neighbouring grids. Returns ``down``/``up``
+    (un-weighted sums), ``down{k}``/``up{k}`` per output, and ``total`` = γ_down·down + γ_up·up.
     """
     prevs = [coarse_input.to(outputs[0].dtype), *outputs[:-1]]
     out: dict[str, Tensor] = {}
     for j, (prev, cur) in enumerate(zip(prevs, outputs)):
-        out[f"down{j}"] = down_loss(cur, prev, lc.down_loss, lc.stop_gradient, lc.down_hinge_high)
-        out[f"up{j}"] = up_loss(cur, prev, lc.stop_gradient)
+        f = cur.shape[-1] // prev.shape[-1]
+        out[f"down{j}"] = down_loss(cur, prev, lc.down_loss, lc.stop_gradient, lc.down_hinge_high, factor=f)
+        out[f"up{j}"] = up_loss(cur, prev, lc.stop_gradient, factor=f)
     out["down"] = sum(out[f"down{j}"] for j in range(len(outputs)))  # type: ignore[assignment]
     out["up"] = sum(out[f"up{j}"] for j in range(len(outputs)))  # type: ignore[assignment]
     out["total"] = lc.gamma_down * out["down"] + lc.gamma_up * out["up"]
@@ -148,7 +154,7 @@ def structure_losses(outputs: Sequence[Tensor], coarse_input: Tensor, lc: LossCo
 
 def _stack_masks(samples: Sequence[StyledCoarse], level: int, cfg: ModelConfig, shape: tuple[int, ...]) -> DOutputMasks:
     """Masks of every batch item for one level, rebuilt from each item's own assignment."""
-    per = [s.masks(level, cfg.discriminators[level], shape, cfg.n_styles) for s in samples]
+    per = [s.masks(level, cfg.discriminator(level), shape, cfg.n_styles) for s in samples]
     return DOutputMasks(torch.stack([m.style for m in per]), torch.stack([m.global_ for m in per]))
 
 
@@ -167,8 +173,9 @@ def generator_adversarial_loss(
     """The adversarial G step's loss: Σ_levels GAN + γ_down·Σ L_down + γ_up·Σ L_up.
 
     Args:
-        d_fake: per level, (B, N+1, *S_j) discriminator outputs on ``outputs`` (not detached).
-        outputs: per level, (B, 1, ...) generator outputs.
+        d_fake: per supervised level (``cfg.supervised_levels``), (B, N+1, *S_j) discriminator
+            outputs on ``outputs`` (not detached).
+        outputs: per supervised level, (B, 1, ...) generator outputs.
         coarse_input: (B, 1, X, Y, Z) binary coarse occupancy given to the generator.
         fake: per batch item, the coarse labels and part→style assignment of the input.
         alpha_coarse: per batch item, (X, Y, Z) style-head weights (``masks.alpha_map``);
@@ -179,15 +186,16 @@ def generator_adversarial_loss(
     lc, samples = cfg.losses, _as_seq(fake)
     alphas = None if alpha_coarse is None else ([alpha_coarse] if isinstance(alpha_coarse, Tensor) else alpha_coarse)
     out: dict[str, Tensor] = {}
-    for j, d in enumerate(d_fake):
+    levels = cfg.supervised_levels
+    for j, d in zip(levels, d_fake):
         shape = tuple(d.shape[2:])
         m = _stack_masks(samples, j, cfg, shape)
         if alphas is None:
             a: Tensor | float = lc.alpha_other
         else:
-            a = torch.stack([align_to_d_output(x[None], j, cfg.discriminators[j], shape) for x in alphas])
+            a = torch.stack([align_to_d_output(x[None], j, cfg.discriminator(j), shape) for x in alphas])
         out[f"gan{j}"] = generator_gan_loss(d, m.style, m.global_, a)["total"]
-    out["gan"] = sum(out[f"gan{j}"] for j in range(len(d_fake)))  # type: ignore[assignment]
+    out["gan"] = sum(out[f"gan{j}"] for j in levels[: len(d_fake)])  # type: ignore[assignment]
     st = structure_losses(outputs, coarse_input, lc)
     out["down"], out["up"] = st["down"], st["up"]
     out["total"] = out["gan"] + st["total"]
@@ -212,12 +220,13 @@ def discriminator_loss_levels(
     """
     reals, fakes = _as_seq(real), _as_seq(fake)
     out: dict[str, Tensor] = {}
-    for j, (dr, df) in enumerate(zip(d_real, d_fake)):
+    levels = cfg.supervised_levels
+    for j, dr, df in zip(levels, d_real, d_fake):
         rm = _stack_masks(reals, j, cfg, tuple(dr.shape[2:]))
         fm = _stack_masks(fakes, j, cfg, tuple(df.shape[2:]))
         terms = discriminator_loss(dr, df, rm, fm)
         out[f"real{j}"], out[f"fake{j}"] = terms["real"], terms["fake"]
-    out["real"] = sum(out[f"real{j}"] for j in range(len(d_real)))  # type: ignore[assignment]
-    out["fake"] = sum(out[f"fake{j}"] for j in range(len(d_fake)))  # type: ignore[assignment]
+    out["real"] = sum(out[f"real{j}"] for j in levels[: len(d_real)])  # type: ignore[assignment]
+    out["fake"] = sum(out[f"fake{j}"] for j in levels[: len(d_fake)])  # type: ignore[assignment]
     out["total"] = out["real"] + out["fake"]
     return out

@@ -65,9 +65,13 @@ def _memory_format(module: nn.Module) -> torch.memory_format:
 
 
 class _Level(nn.Module):
-    """One doubling level: concat(features, parts↑, z↑) → upsample → convs → 1-channel side head."""
+    """One doubling level: concat(features, parts↑, z↑) → upsample → convs → 1-channel side head.
 
-    def __init__(self, spec: LevelSpec, in_ch: int, slope: float) -> None:
+    ``supervised`` False (intermediate levels without the pyramid): no side head; the
+    level only passes its features on (``forward`` returns None for the occupancy).
+    """
+
+    def __init__(self, spec: LevelSpec, in_ch: int, slope: float, supervised: bool = True) -> None:
         super().__init__()
         w = spec.width
         if spec.upsampler is Upsampler.CONV_TRANSPOSE:
@@ -79,7 +83,8 @@ class _Level(nn.Module):
         self.shuffle = spec.upsampler is Upsampler.VOXEL_SHUFFLE
         self.convs = nn.ModuleList(nn.Conv3d(w, w, 3, padding=1) for _ in range(spec.n_convs))
         k = spec.head_kernel
-        self.head = nn.Conv3d(w, 1, k, padding=k // 2) if k > 0 else None
+        self.head = nn.Conv3d(w, 1, k, padding=k // 2) if k > 0 and supervised else None
+        self.supervised = supervised
         self.slope = slope
 
     def forward(self, x: Tensor, with_head: bool = True) -> tuple[Tensor, Tensor | None]:
@@ -87,12 +92,12 @@ class _Level(nn.Module):
         y = self.up(x)
         if self.shuffle:
             y = voxel_shuffle(y).contiguous(memory_format=_format_of(x))
-        if self.head is None:  # the single shuffled channel is the occupancy pre-activation
+        if self.head is None and self.supervised:  # the single shuffled channel is the occupancy pre-activation
             return y, y
         y = F.leaky_relu(y, self.slope, inplace=True)
         for conv in self.convs:
             y = F.leaky_relu(conv(y), self.slope, inplace=True)
-        return y, (self.head(y) if with_head else None)
+        return y, (self.head(y) if with_head and self.head is not None else None)
 
 
 def _format_of(x: Tensor) -> torch.memory_format:
@@ -106,14 +111,15 @@ def _upsample(x: Tensor, factor: int) -> Tensor:
 
 
 class Generator(nn.Module):
-    """Pyramid generator: coarse occupancy + parts + per-voxel style → occupancy at every level.
+    """Pyramid generator: coarse occupancy + parts + per-voxel style → occupancy at every supervised level.
 
     Inputs (coarse resolution): occupancy (1 channel), part one-hot × occupancy (P
     channels; absent in the "w/o part labels" variant), style field z (``style_dim``
     channels) built from the learnable codes by ``style_field``. The backbone
     re-concatenates z before every conv (as the reference: 14 → 32 … 512 channels
     for P=5); every level concatenates the nearest-upsampled parts and z before
-    upsampling. Outputs pass through the leaky clamp to [0, 1].
+    upsampling. Outputs pass through the leaky clamp to [0, 1]. Without the pyramid
+    (``cfg.pyramid`` False) only the last level has a head and an output.
 
     Conv weights use PyTorch's default initialisation (seed with ``torch.manual_seed``
     for reproducible weights); the style codes start at zero.
@@ -131,8 +137,8 @@ class Generator(nn.Module):
             in_ch = width + z
         self.backbone = nn.ModuleList(convs)
         levels, feat = [], cfg.backbone_widths[-1]
-        for spec in cfg.levels:
-            levels.append(_Level(spec, feat + p + z, cfg.leaky_slope))
+        for j, spec in enumerate(cfg.levels):
+            levels.append(_Level(spec, feat + p + z, cfg.leaky_slope, supervised=j in cfg.supervised_levels))
             feat = spec.width
         self.levels = nn.ModuleList(levels)
 
@@ -186,7 +192,9 @@ class Generator(nn.Module):
             final_only: skip the intermediate side heads (inference); the list then holds
                 only the last level.
         Returns:
-            Per-level occupancy in [0, 1] (leaky clamp): [(B, 1, 2D, 2H, 2W), …, (B, 1, 2^L D, 2^L H, 2^L W)].
+            Occupancy in [0, 1] (leaky clamp) of every level in ``cfg.supervised_levels``
+            (level j at 2^(j+1)×): [(B, 1, 2D, 2H, 2W), …, (B, 1, 2^L D, 2^L H, 2^L W)] for the
+            pyramid, [(B, 1, 2^L D, 2^L H, 2^L W)] without it.
         """
         cfg = self.cfg
         self._check(occupancy, part_onehot, z)
@@ -250,7 +258,7 @@ class Discriminator(nn.Module):
 
 
 def build_discriminators(cfg: ModelConfig) -> nn.ModuleList:
-    """One ``Discriminator`` per generator level, in level order (separate weights)."""
+    """One ``Discriminator`` per supervised generator level, in level order (separate weights)."""
     return nn.ModuleList(Discriminator(spec, cfg.n_styles, cfg.leaky_slope) for spec in cfg.discriminators)
 
 

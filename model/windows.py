@@ -32,8 +32,9 @@ def halo_cells(cfg, whole_levels: int) -> int:
     Cutting the features at level ``whole_levels``'s input treats everything outside
     the cut as zero; that error spreads inwards by (conservatively) 2c + 2 voxels per
     transposed conv (2(c + 1) per voxel-shuffle conv), +1 per 3³ conv, +1 for the head.
-    The halo is the largest such depth over the windowed levels, in coarse cells
-    (1 for the lean layout cut at level 2, 3 when every level is windowed).
+    The halo is the largest such depth over the windowed levels that have an output
+    (``cfg.supervised_levels``), in coarse cells (1 for the lean layout cut at level 2,
+    3 when every level is windowed).
     """
     from model.config import Upsampler
 
@@ -41,7 +42,8 @@ def halo_cells(cfg, whole_levels: int) -> int:
     for j in range(whole_levels, cfg.n_levels):
         lv = cfg.levels[j]
         c = (2 * c + 2 if lv.upsampler is Upsampler.CONV_TRANSPOSE else 2 * (c + 1)) + lv.n_convs
-        need = max(need, math.ceil((c + lv.head_kernel // 2) / 2 ** (j + 1)))
+        if j in cfg.supervised_levels:
+            need = max(need, math.ceil((c + lv.head_kernel // 2) / 2 ** (j + 1)))
     return need
 
 
@@ -49,7 +51,7 @@ def _trunk(gen, occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor", 
     """Backbone + levels ``< whole_levels`` on the whole grid.
 
     Returns (features entering level ``whole_levels`` (1, C, 2^w·X, …), conditioning
-    (1, K, X, Y, Z), outputs of the whole levels if ``keep`` else []).
+    (1, K, X, Y, Z), outputs of the supervised whole levels if ``keep`` else []).
     """
     import torch
 
@@ -69,7 +71,7 @@ def _trunk(gen, occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor", 
     outs = []
     for j in range(whole_levels):
         x, logit = gen.levels[j](torch.cat([x, _upsample(cond, 2**j)], 1))
-        if keep:
+        if keep and logit is not None:
             outs.append(leaky_clamp(logit, cfg.clamp_slope))
     return x, cond, outs
 
@@ -95,7 +97,7 @@ def _fine_on_window(gen, x: "Tensor", cond: "Tensor", whole_levels: int, window:
     outs = []
     for j in range(whole_levels, cfg.n_levels):
         x, logit = gen.levels[j](torch.cat([x, _upsample(cond, 2**j)], 1))
-        if keep or j == cfg.n_levels - 1:
+        if logit is not None and (keep or j == cfg.n_levels - 1):
             r = 2 ** (j + 1)
             out = leaky_clamp(logit, cfg.clamp_slope)
             outs.append(out[:, :, *(slice((w.start - a) * r, (w.stop - a) * r) for w, a in zip(window, lo))])
@@ -112,8 +114,8 @@ def window_forward(gen, occupancy, part_onehot, z, whole_levels: int, window: Wi
     float rounding). ``window=None`` is ``gen(...)``.
 
     Returns:
-        per level, (1, 1, 2^(j+1)·w, …) where w is the whole grid (``j < whole_levels``)
-        or the window (otherwise).
+        per supervised level j (``cfg.supervised_levels``), (1, 1, 2^(j+1)·w, …) where w is
+        the whole grid (``j < whole_levels``) or the window (otherwise).
     """
     if window is None:
         return gen(occupancy, part_onehot, z)
