@@ -328,7 +328,7 @@ def place_in_crop(labels: np.ndarray, rng: np.random.Generator, factor: int, mar
 def min_coarse_cells(cfg: ModelConfig) -> int:
     """Smallest coarse extent (≥ 3: one bbox cell + margins) for which every level's discriminator has an output."""
     c = 3
-    while any(d.output_size(c * 2 ** (j + 1)) < 1 for j, d in enumerate(cfg.discriminators)):
+    while any(d.output_size(c * 2 ** (j + 1)) < 1 for j, d in zip(cfg.supervised_levels, cfg.discriminators)):
         c += 1
     return c
 

@@ -174,8 +174,8 @@ def surface_window(coarse_occ: np.ndarray, cells: int, rng: np.random.Generator)
 
 def check_window(cfg: ModelConfig, whole_levels: int, cells: int) -> None:
     """Refuse a window too small for the windowed levels' discriminators."""
-    for j in range(whole_levels, cfg.n_levels):
-        if cfg.discriminators[j].output_size(cells * 2 ** (j + 1)) < 1:
+    for j, d in zip(cfg.supervised_levels, cfg.discriminators):
+        if j >= whole_levels and d.output_size(cells * 2 ** (j + 1)) < 1:
             raise DetailizeError(f"a window of {cells} coarse cells is too small for the level-{j} discriminator",
                                  field="window_cells", hint="use a larger window_cells, or 0 for whole shapes")
 
@@ -211,7 +211,7 @@ class SampleView:
                             s.assignment)
 
     def masks(self, j: int, d_shape: tuple[int, ...], cfg: ModelConfig) -> DOutputMasks:
-        m = self.styled(j).masks(j, cfg.discriminators[j], d_shape, cfg.n_styles)
+        m = self.styled(j).masks(j, cfg.discriminator(j), d_shape, cfg.n_styles)
         return DOutputMasks(m.style[None], m.global_[None])
 
     def alpha(self, j: int, d_shape: tuple[int, ...], cfg: ModelConfig):
@@ -221,13 +221,14 @@ class SampleView:
         if self._joints is None:
             self._joints = joint_mask(self.sample.fine_labels, cfg.factor, lc.joint_radius)
         a = alpha_map(self._crop(self._joints, j, 1), lc.alpha_joint, lc.alpha_other)
-        return align_to_d_output(a[None], j, cfg.discriminators[j], d_shape)[None]
+        return align_to_d_output(a[None], j, cfg.discriminator(j), d_shape)[None]
 
-    def crop_prev(self, prev, j: int):
-        """Level j−1's output (or the coarse input) cut to the cells level j covers."""
-        if self._cells(j) is None or self._cells(j - 1) is not None:
+    def crop_prev(self, prev, j: int, j_prev: int | None = None):
+        """Level ``j_prev``'s output (default j−1; −1 = the coarse input) cut to the cells level j covers."""
+        j_prev = j - 1 if j_prev is None else j_prev
+        if self._cells(j) is None or self._cells(j_prev) is not None:
             return prev
-        r = 2**j  # prev is at 2^j × coarse
+        r = 2 ** (j_prev + 1)  # prev is at 2^(j_prev+1) × coarse
         return prev[:, :, *(slice(s.start * r, s.stop * r) for s in self.window)]
 
 
@@ -288,7 +289,8 @@ class Trainer:
         s = style_sample(self.exemplars, style, self.cfg, self.aug, self.tcfg.seed, it * 8 + r)
         v = self._view(s, it, 200 + r)
         outs = self._forward(v)
-        loss = self.cfg.losses.beta_recon * sum(F.mse_loss(o, v.target(j)) for j, o in enumerate(outs))
+        levels = self.cfg.supervised_levels
+        loss = self.cfg.losses.beta_recon * sum(F.mse_loss(o, v.target(j)) for j, o in zip(levels, outs))
         self.opt_g.zero_grad(set_to_none=True)
         loss.backward()
         self.opt_g.step()
@@ -297,10 +299,13 @@ class Trainer:
     def adversarial_steps(self, it: int, real: "SampleView") -> dict[str, float]:
         """The G adversarial step, then the D step, on one augmented content.
 
-        Per level j: masked LSGAN (``losses.generator_gan_loss`` / ``discriminator_loss``)
-        with masks built from the level's coarse cells (the window's for windowed levels)
-        and the true per-part assignment; L_down/L_up against level j−1 (the coarse input
-        for j = 0), cropped to the window where level j is windowed.
+        Per supervised level j (every level; only the last without the pyramid), with
+        the k-th supervised level's discriminator: masked LSGAN
+        (``losses.generator_gan_loss`` / ``discriminator_loss``) with masks built from the
+        level's coarse cells (the window's for windowed levels) and the true per-part
+        assignment; L_down/L_up against the previous supervised level's output (the coarse
+        input for the first, pooled by the resolution ratio: 2, or 16 without the
+        pyramid), cropped to the window where level j is windowed.
         """
         from model.losses import discriminator_loss, down_loss, generator_gan_loss, up_loss
 
@@ -312,16 +317,18 @@ class Trainer:
         # G: the discriminators judge but do not learn here.
         self.discs.requires_grad_(False)
         outs = self._forward(v)
+        levels = cfg.supervised_levels
         gan, down, up = [], [], []
-        for j, (d, o) in enumerate(zip(self.discs, outs)):
+        for k, (j, d, o) in enumerate(zip(levels, self.discs, outs)):
             df = d(o)
             m = v.masks(j, tuple(df.shape[2:]), cfg)
             alpha = v.alpha(j, tuple(df.shape[2:]), cfg) if self.tcfg.adaptive_alpha else lc.alpha_other
             gan.append(generator_gan_loss(df, m.style, m.global_, alpha)["total"])
-            prev = occ if j == 0 else outs[j - 1]
-            prev = v.crop_prev(prev, j)
-            down.append(down_loss(o, prev, lc.down_loss, lc.stop_gradient, lc.down_hinge_high))
-            up.append(up_loss(o, prev, lc.stop_gradient))
+            j_prev = levels[k - 1] if k else -1
+            prev = v.crop_prev(outs[k - 1] if k else occ, j, j_prev)
+            f = 2 ** (j - j_prev)
+            down.append(down_loss(o, prev, lc.down_loss, lc.stop_gradient, lc.down_hinge_high, factor=f))
+            up.append(up_loss(o, prev, lc.stop_gradient, factor=f))
         g_gan, g_down, g_up = sum(gan), sum(down), sum(up)
         g_total = g_gan + lc.gamma_down * g_down + lc.gamma_up * g_up
         self.opt_g.zero_grad(set_to_none=True)
@@ -331,7 +338,7 @@ class Trainer:
 
         # D: real = the smoothed style shape of the last reconstruction step; fake = detached outputs.
         d_real_sum = d_fake_sum = 0.0
-        for j, (d, o) in enumerate(zip(self.discs, outs)):
+        for j, d, o in zip(levels, self.discs, outs):
             dr, df = d(real.target(j)), d(o.detach())
             terms = discriminator_loss(dr, df, real.masks(j, tuple(dr.shape[2:]), cfg),
                                        v.masks(j, tuple(df.shape[2:]), cfg))
