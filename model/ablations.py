@@ -3,20 +3,38 @@
 Each entry changes the full model's ``ModelConfig`` / ``TrainConfig`` in one
 way; ``ablation_configs(name, cfg, tcfg)`` returns the pair to train with.
 Training them is not done here (CPU budget); train each at the same reduced
-budget and evaluate with ``decollage eval --checkpoint``.
+budget (``decollage train --ablation NAME``, which records the name in the
+checkpoint's training meta) and evaluate with ``decollage eval --checkpoint``.
 
-Not expressible as a config yet: the "no pyramid" row (a single ×16
-generator level with one discriminator needs a generator and a loss loop
-without intermediate levels; it is the DECOR-GAN* baseline's layout).
+The pyramid rows (``ModelConfig.pyramid``; paper Table 4 (a) vs (b)–(i)):
+
+- ``no_pyramid``: only the pyramid removed, as every other entry removes one
+  thing: the generator still doubles four times but only the ×16 level has a
+  head, is reconstructed and is judged, by one discriminator (the last level's,
+  RF 18). L_down/L_up are kept, comparing the ×16 output with the coarse input
+  (max-pool ×16 / nearest ×16), and so is adaptive α: the row measures the
+  pyramid alone.
+- ``decor_gan``: the DECOR-GAN* baseline as the paper ran it (Table 4 (a) is
+  labelled "P ✗ (DECOR-GAN*)"; §1.4, §3 of method.md): the same single ×16
+  generator and one discriminator, no structure-preserving losses (they are
+  defined between pyramid levels; γ_down = γ_up = 0), one style-head weight
+  α2 everywhere (DECOR-GAN's α, no adaptive α), and per-region styles through
+  the same random per-part style assignment, data and budget as the full model.
+  Not reproduced: DECOR-GAN's own generator widths and its hard output mask
+  (dilated coarse occupancy), its near-surface style D-mask and its D-first
+  step order; the shared generator layout keeps the comparison about the
+  pyramid and the losses.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 from model.config import DownLoss, ModelConfig, TargetSmoothing
-from model.train import TrainConfig
+
+if TYPE_CHECKING:  # the names are read by the CLI at start-up: keep this module light
+    from model.train import TrainConfig
 
 #: name → (Table 4 row, change). The change takes and returns (ModelConfig, TrainConfig).
 ABLATIONS: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelConfig, TrainConfig]]]] = {
@@ -33,6 +51,11 @@ ABLATIONS: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[Model
                          target_smoothing=TargetSmoothing.GAUSSIAN)), t)),
     "no_part_labels": ("w/o part labels (no part one-hot inputs)",
                        lambda m, t: (dataclasses.replace(m, use_part_labels=False), t)),
+    "no_pyramid": ("w/o pyramid (one ×16 level and one D; L_down/L_up against the coarse input)",
+                   lambda m, t: (m.without_pyramid(), t)),
+    "decor_gan": ("DECOR-GAN* baseline (no pyramid, no L_down/L_up, no adaptive α)",
+                  lambda m, t: (dataclasses.replace(m.without_pyramid(), losses=dataclasses.replace(
+                      m.losses, gamma_down=0.0, gamma_up=0.0)), dataclasses.replace(t, adaptive_alpha=False))),
 }
 
 

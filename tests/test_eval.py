@@ -281,13 +281,19 @@ def test_ablation_presets_change_one_thing_each(tmp_path):
     for name in ABLATIONS:
         m, t = ablation_configs(name, cfg, tcfg)
         ModelConfig.from_dict(m.to_dict())  # still a valid, serialisable config
-        diff = {k for k in ("losses", "use_part_labels") if getattr(m, k) != getattr(cfg, k)}
+        diff = {k for k in ("losses", "use_part_labels", "pyramid") if getattr(m, k) != getattr(cfg, k)}
         diff |= {k for k in ("adaptive_alpha",) if getattr(t, k) != getattr(tcfg, k)}
         changed[name] = diff
     assert changed == {"full": set(), "no_down": {"losses"}, "no_up": {"losses"},
                        "no_adaptive_alpha": {"adaptive_alpha"}, "paper_losses": {"losses"},
-                       "no_part_labels": {"use_part_labels"}}
+                       "no_part_labels": {"use_part_labels"}, "no_pyramid": {"pyramid"},
+                       "decor_gan": {"pyramid", "losses", "adaptive_alpha"}}
     assert ablation_configs("no_down", cfg, tcfg)[0].losses.gamma_down == 0.0
     assert ablation_configs("paper_losses", cfg, tcfg)[0].losses.down_loss is DownLoss.PAPER_MSE
     with pytest.raises(KeyError, match="known"):
-        ablation_configs("no_pyramid", cfg, tcfg)
+        ablation_configs("no_such_row", cfg, tcfg)
+    no_p = ablation_configs("no_pyramid", cfg, tcfg)[0]
+    assert no_p.supervised_levels == (3,) and no_p.discriminators == cfg.discriminators[-1:]
+    assert no_p.levels == cfg.levels and no_p.losses == cfg.losses  # the losses stay, at ×16
+    decor = ablation_configs("decor_gan", cfg, tcfg)[0].losses
+    assert decor.gamma_down == decor.gamma_up == 0.0
