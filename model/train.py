@@ -56,6 +56,7 @@ Intended CLI (``pipeline/cli.py`` will map it onto ``train``)::
     decollage train --set things --out runs/things --steps 3000 [--resolution 128]
                     [--seed 0] [--device auto|cpu|cuda] [--layout lean|paper]
                     [--checkpoint-every 100] [--recon-early-iters 5000] [--no-resume]
+                    [--ablation full|no_pyramid|decor_gan|...]
 """
 
 from __future__ import annotations
@@ -101,6 +102,9 @@ class TrainConfig:
         adaptive_alpha: α1 in part-joint cells (else α2 everywhere).
         device: ``auto``, ``cpu``, ``cuda``.
         command: the command line that started the run (recorded in checkpoints).
+        ablation: name of the ``model.ablations`` row this run trains (``full`` = the model),
+            recorded in the checkpoints' training meta; a resume must name the same one.
+            It is a label: the caller builds the configs with ``ablation_configs``.
     """
 
     out_dir: str
@@ -118,6 +122,7 @@ class TrainConfig:
     adaptive_alpha: bool = True
     device: str = "auto"
     command: str = ""
+    ablation: str = "full"
 
     def __post_init__(self) -> None:
         checks = (
@@ -134,6 +139,11 @@ class TrainConfig:
         for ok, name, hint in checks:
             if not ok:
                 raise DetailizeError(f"bad training setting {name} = {getattr(self, name)!r}", field=name, hint=hint)
+        from model.ablations import ABLATIONS
+
+        if self.ablation not in ABLATIONS:
+            raise DetailizeError(f"unknown ablation {self.ablation!r}", field="ablation",
+                                 hint="use one of: " + ", ".join(ABLATIONS))
 
     def augment(self) -> AugmentConfig:
         return AugmentConfig(resolution=self.resolution)
@@ -375,6 +385,7 @@ class Trainer:
             "step": self.step,
             "seed": self.tcfg.seed,
             "command": self.tcfg.command,
+            "ablation": self.tcfg.ablation,
             "wall_time_s": round(self.wall_s, 3),
             "machine": f"{platform.machine()} {os.cpu_count()} cpus, {self.device.type}"
                        + (f" ({torch.cuda.get_device_name(self.device)})" if self.device.type == "cuda" else ""),
@@ -407,7 +418,8 @@ class Trainer:
         import torch
 
         ck = load_checkpoint(path, training_state=True)
-        if ck.config != self.cfg or ck.style_names != tuple(e.name for e in self.exemplars):
+        same_ablation = ck.training.get("ablation", "full") == self.tcfg.ablation  # absent: written before the key
+        if ck.config != self.cfg or ck.style_names != tuple(e.name for e in self.exemplars) or not same_ablation:
             raise DetailizeError("the checkpoint to resume was trained with another config or exemplar set",
                                  file=path, hint="use a new --out folder, or the same settings as that run")
         if ck.discriminators is None or not ck.optimizers or set(ck.optimizers) != {"g", "d"}:

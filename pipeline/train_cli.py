@@ -15,6 +15,7 @@ from pathlib import Path
 
 import typer
 
+from model.ablations import ABLATIONS
 from pipeline.errors import UsageError
 
 
@@ -23,6 +24,10 @@ class Layout(str, Enum):
 
     LEAN = "lean"  # CPU default (measured: ~1 M parameters, ~1 s per 16³ → 256³ on 2 cores)
     PAPER = "paper"  # the published widths (19 M + 11 M parameters)
+
+
+#: ``--ablation`` choices: the named rows of ``model.ablations`` (``full`` = the model itself).
+Ablation = Enum("Ablation", {name: name for name in ABLATIONS}, type=str)
 
 
 def resolve_style_set(name_or_path: str, progress=None):
@@ -53,6 +58,10 @@ def train_command(
     steps: int = typer.Option(..., "--steps", help="Iterations to reach (a resumed run continues up to this)."),
     resolution: int = typer.Option(256, "--resolution", help="Fine grid edge shapes are sized for (256 or 128)."),
     layout: Layout = typer.Option(Layout.LEAN, "--layout", help="Model sizes."),
+    ablation: Ablation = typer.Option("full", "--ablation",
+                                      help="Train a Table 4 ablation or baseline of the layout instead of the full "
+                                           "model (model.ablations; e.g. no_pyramid, decor_gan); recorded in "
+                                           "the checkpoint."),
     seed: int = typer.Option(0, "--seed"),
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda or cuda:N."),
     checkpoint_every: int = typer.Option(100, "--checkpoint-every", help="Iterations between last.pt saves."),
@@ -68,7 +77,7 @@ def train_command(
 
     try:
         _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_every, preview_every,
-               recon_early_iters, resume, quiet)
+               recon_early_iters, resume, quiet, ablation.value)
     except DecollageError as exc:
         _fail(exc)
     except KeyboardInterrupt:
@@ -77,10 +86,11 @@ def train_command(
 
 
 def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_every, preview_every,
-           recon_early_iters, resume, quiet) -> None:
+           recon_early_iters, resume, quiet, ablation="full") -> None:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
         TimeRemainingColumn
 
+    from model.ablations import ablation_configs
     from model.config import ModelConfig
     from model.data import exemplars_from_set
     from model.train import TrainConfig, train
@@ -95,11 +105,13 @@ def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_e
     cfg = make(n_parts=len(sset.vocabulary.parts), n_styles=len(exemplars))
     tcfg = TrainConfig(out_dir=str(out), steps=steps, seed=seed, device=device, resolution=resolution,
                        checkpoint_every=checkpoint_every, preview_every=preview_every,
-                       recon_early_iters=recon_early_iters,
+                       recon_early_iters=recon_early_iters, ablation=ablation,
                        command="decollage " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+    cfg, tcfg = ablation_configs(ablation, cfg, tcfg)
     if not quiet:
         console.print(f"training on set '{sset.name}' ({len(exemplars)} styles, parts "
-                      f"{', '.join(sset.vocabulary.parts)}), layout {layout.value}, R = {resolution}")
+                      f"{', '.join(sset.vocabulary.parts)}), layout {layout.value}, R = {resolution}"
+                      + ("" if ablation == "full" else f", ablation {ablation} ({ABLATIONS[ablation][0]})"))
     bar = Progress(TextColumn("train"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[losses]}"),
                    TimeElapsedColumn(), TimeRemainingColumn(), console=console, disable=quiet or not console.is_terminal)
     lines = not quiet and not console.is_terminal
