@@ -27,10 +27,10 @@ def _tiny_set(tmp_path):
     return build_set("huts", THINGS, specs, tmp_path / "huts.npz", resolution=R).path
 
 
-def _train(set_path, out, steps):
+def _train(set_path, out, steps, *extra):
     return CliRunner().invoke(app, ["train", "--set", str(set_path), "--out", str(out), "--steps", str(steps),
                                     "--resolution", str(R), "--preview-every", "2", "--checkpoint-every", "1",
-                                    "--recon-early-iters", "0", "--device", "cpu", "--quiet"])
+                                    "--recon-early-iters", "0", "--device", "cpu", "--quiet", *extra])
 
 
 def test_train_writes_model_log_previews_and_resumes(tmp_path):
@@ -60,3 +60,21 @@ def test_train_refuses_unknown_set_and_bad_settings(tmp_path, monkeypatch):
     assert "Traceback" not in result.output
     result = _train(_tiny_set(tmp_path), tmp_path / "r2", -1)
     assert result.exit_code == 2 and "steps" in result.output
+
+
+def test_train_ablation_option_trains_the_named_row_and_records_it(tmp_path):
+    set_path = _tiny_set(tmp_path)
+    result = _train(set_path, tmp_path / "nop", 1, "--ablation", "no_pyramid", "--preview-every", "0")
+    assert result.exit_code == 0, result.output
+    ck = load_checkpoint(tmp_path / "nop" / "model.pt")
+    assert not ck.config.pyramid and ck.config.supervised_levels == (3,) and len(ck.config.discriminators) == 1
+    assert ck.training["ablation"] == "no_pyramid"
+    full = load_checkpoint(tmp_path / "nop" / "last.pt")
+    assert full.training["train_config"]["ablation"] == "no_pyramid"
+    # Without the option the full model trains, recorded as such.
+    result = _train(set_path, tmp_path / "full", 1, "--preview-every", "0")
+    assert result.exit_code == 0, result.output
+    ck = load_checkpoint(tmp_path / "full" / "model.pt")
+    assert ck.config.pyramid and ck.training["ablation"] == "full"
+    result = _train(set_path, tmp_path / "bad", 1, "--ablation", "no_such_row")
+    assert result.exit_code == 2 and "no_such_row" in result.output and "decor_gan" in result.output
