@@ -145,6 +145,10 @@ class DaskExecutor:
 def make_executor(kind: str, jobs: int, address: str | None, gpus_per_task: float, progress=None):
     """The executor for the CLI's ``--executor``/``--jobs``/``--address`` options."""
     if kind == "local":
+        if gpus_per_task:
+            raise UsageError("--gpus-per-task is a cluster resource request; it needs --executor dask",
+                             field="--gpus-per-task",
+                             hint="on one machine the recipe's detailize.device picks the GPU (auto, cpu, cuda)")
         return LocalExecutor(progress) if jobs == 1 else ProcessExecutor(jobs)
     if kind == "dask":
         return DaskExecutor(address, gpus_per_task)

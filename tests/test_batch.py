@@ -203,3 +203,9 @@ assets:
     assert key() == first
     weights.write_bytes(b"weights v2")
     assert key() != first
+
+
+def test_gpus_per_task_without_a_cluster_is_a_usage_error(batch, tmp_path):
+    result = _cli("build", batch, "-o", tmp_path / "out", "--gpus-per-task", "1")
+    assert result.exit_code == 2 and "needs --executor dask" in result.stderr
+    assert not (tmp_path / "out").exists()
