@@ -104,9 +104,9 @@ class DecollageDetailizer:
         if checkpoint is None:
             if not DEFAULT_CHECKPOINT.exists():
                 raise DetailizeError(
-                    f"no shipped model yet ({DEFAULT_CHECKPOINT.name} is not in model/weights/)",
+                    f"the shipped model {DEFAULT_CHECKPOINT} is missing (a broken install or checkout?)",
                     field="checkpoint",
-                    hint="use detailizer: upsample or pass a checkpoint",
+                    hint="reinstall decollage, pass a checkpoint, or use detailizer: upsample",
                 )
             checkpoint = DEFAULT_CHECKPOINT
         self.checkpoint_path = Path(checkpoint)

@@ -40,7 +40,7 @@ DEFAULT_CHECKPOINTS: dict[str, str] = {
 }
 
 #: The detailizer of an asset whose recipe names none: the shipped learned model.
-DEFAULT_DETAILIZER = "upsample"  # "decollage" once the shipped weights are committed
+DEFAULT_DETAILIZER = "decollage"
 
 _CACHE: dict[tuple, Detailizer] = {}
 
