@@ -139,12 +139,13 @@ def test_killed_build_resumes_with_only_the_missing_assets(batch, tmp_path, sig,
                             start_new_session=True)
     records = out / ".decollage"
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(records.glob("*.json")) if records.exists() else []) < 2:
+    while time.time() < deadline and not (records.exists() and any(records.glob("*.json"))):
         time.sleep(0.05)
     os.killpg(proc.pid, sig)  # the whole process group, as a terminal's Ctrl-C or a CI timeout would
     proc.wait(timeout=60)
     done_before = {p.stem for p in records.glob("*.json")}
-    assert 2 <= len(done_before) < 7
+    # kill at the first record: the widest margin before all 7 are done, even on a loaded machine
+    assert 1 <= len(done_before) < 7
     code, resumed = _json("build", batch, "-o", out)
     statuses = _statuses(resumed)
     assert {n for n, s in statuses.items() if s == "cached"} == done_before
