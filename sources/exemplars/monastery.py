@@ -79,6 +79,7 @@ from typing import TYPE_CHECKING, Mapping
 import numpy as np
 
 from pipeline.exemplars import RESOLUTION, ExemplarError, ExemplarSpec, fit_voxels
+from sources.exemplars.obj_text import GroupedObj, parse_obj
 
 if TYPE_CHECKING:
     import trimesh
@@ -147,18 +148,8 @@ ROOF_MATERIALS: frozenset[str] = frozenset({
 })
 
 
-@dataclass(frozen=True, eq=False)
-class ObjMesh:
-    """Triangles of an OBJ: ``vertices`` (V, 3) float64, ``faces`` (F, 3) int64 and
-    ``material`` (F,) int index into ``materials`` (-1 = before any ``usemtl``)."""
-
-    vertices: np.ndarray
-    faces: np.ndarray
-    material: np.ndarray
-    materials: tuple[str, ...]
-
-    def material_names(self, faces: np.ndarray) -> list[str]:
-        return ["" if m < 0 else self.materials[m] for m in self.material[faces]]
+#: Triangles of an OBJ with their materials (and groups): the shared reader's type.
+ObjMesh = GroupedObj
 
 
 # --------------------------------------------------------------------------- finding and reading
@@ -197,44 +188,12 @@ def read_obj(path: Path) -> ObjMesh:
 
 @lru_cache(maxsize=2)
 def _read_obj(path: str, size: int, mtime_ns: int) -> ObjMesh:
-    vertices: list[list[str]] = []
-    faces: list[tuple[int, int, int]] = []
-    face_material: list[int] = []
-    materials: list[str] = []
-    index: dict[str, int] = {}
-    current = -1
+    hint = f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}"
     try:
         with open(path, "r", encoding="utf-8", errors="replace") as handle:
-            for number, line in enumerate(handle, 1):
-                head = line[:2]
-                if head == "v ":
-                    vertices.append(line.split()[1:4])
-                elif head == "f ":
-                    ids = [int(t.split("/")[0]) for t in line.split()[1:]]
-                    ids = [i - 1 if i > 0 else len(vertices) + i for i in ids]  # 1-based or negative
-                    faces.extend((ids[0], ids[k], ids[k + 1]) for k in range(1, len(ids) - 1))
-                    face_material.extend([current] * max(0, len(ids) - 2))
-                elif line.startswith("usemtl"):
-                    name = line[6:].strip()
-                    if name not in index:
-                        index[name] = len(materials)
-                        materials.append(name)
-                    current = index[name]
+            return parse_obj(handle, path, hint, file=path)
     except OSError as exc:
-        raise ExemplarError(f"cannot read {path}: {exc.strerror}", file=path,
-                            hint=f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}") from None
-    except (ValueError, IndexError):
-        raise ExemplarError(f"cannot read {path}: line {number} is not valid OBJ", file=path,
-                            hint=f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}") from None
-    try:
-        v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    except ValueError:
-        raise ExemplarError(f"cannot read {path}: a vertex has fewer than 3 coordinates", file=path) from None
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if len(f) == 0 or f.min() < 0 or f.max() >= len(v) or not np.all(np.isfinite(v)):
-        raise ExemplarError(f"cannot read {path}: no faces, or faces that refer to missing vertices",
-                            file=path, hint=f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}")
-    return ObjMesh(v, f, np.asarray(face_material, dtype=np.int64), tuple(materials))
+        raise ExemplarError(f"cannot read {path}: {exc.strerror}", file=path, hint=hint) from None
 
 
 # --------------------------------------------------------------------------- splitting and labelling

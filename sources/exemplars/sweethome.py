@@ -71,6 +71,8 @@ from typing import TYPE_CHECKING, Mapping
 import numpy as np
 
 from pipeline.exemplars import FURNITURE, RESOLUTION, ExemplarError, ExemplarSpec
+from sources.exemplars.obj_text import GroupedObj
+from sources.exemplars.obj_text import parse_obj as read_obj_lines
 
 if TYPE_CHECKING:
     import trimesh
@@ -121,21 +123,6 @@ class CatalogueEntry:
     depth: float
     height: float
     rotated: bool
-
-
-@dataclass(frozen=True, eq=False)
-class GroupedObj:
-    """Triangles of an OBJ with their group and material: ``vertices`` (V, 3), ``faces`` (F, 3),
-    ``group`` (F,) index into ``groups``, ``material`` (F,) index into ``materials`` (-1 = none).
-
-    Has the ``vertices``/``faces`` that ``monastery.face_components`` and ``labelled_fill`` use."""
-
-    vertices: np.ndarray
-    faces: np.ndarray
-    group: np.ndarray
-    groups: tuple[str, ...]
-    material: np.ndarray
-    materials: tuple[str, ...]
 
 
 L, S, B, A, T = "leg", "seat", "back", "armrest", "stretcher"
@@ -305,39 +292,8 @@ def catalogue_entry(path: Path, model: str) -> CatalogueEntry:
 
 
 def parse_obj(text: str, where: str = "OBJ") -> GroupedObj:
-    """Positions, triangles (polygons fan-split), groups (``g``/``o``) and materials (``usemtl``) of OBJ text."""
-    vertices: list[list[str]] = []
-    faces: list[tuple[int, int, int]] = []
-    face_group: list[int] = []
-    face_material: list[int] = []
-    names: dict[str, dict[str, int]] = {"g": {"": 0}, "m": {}}
-    group, material = 0, -1
-    number = 0
-    try:
-        for number, line in enumerate(text.splitlines(), 1):
-            head = line[:2]
-            if head == "v ":
-                vertices.append(line.split()[1:4])
-            elif head == "f ":
-                ids = [int(t.split("/")[0]) for t in line.split()[1:]]
-                ids = [i - 1 if i > 0 else len(vertices) + i for i in ids]  # 1-based or negative
-                n = max(0, len(ids) - 2)
-                faces.extend((ids[0], ids[k], ids[k + 1]) for k in range(1, len(ids) - 1))
-                face_group.extend([group] * n)
-                face_material.extend([material] * n)
-            elif head in ("g ", "o "):
-                group = names["g"].setdefault(line[2:].strip(), len(names["g"]))
-            elif line.startswith("usemtl"):
-                material = names["m"].setdefault(line[6:].strip(), len(names["m"]))
-        v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    except (ValueError, IndexError):
-        raise ExemplarError(f"cannot read {where}: line {number} is not valid OBJ", hint=STALE_HINT) from None
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if len(f) == 0 or f.min() < 0 or f.max() >= len(v) or not np.all(np.isfinite(v)):
-        raise ExemplarError(f"cannot read {where}: no faces, or faces that refer to missing vertices",
-                            hint=STALE_HINT)
-    return GroupedObj(v, f, np.asarray(face_group, np.int64), tuple(names["g"]),
-                      np.asarray(face_material, np.int64), tuple(names["m"]))
+    """Positions, triangles, groups and materials of one model's OBJ text (``obj_text.parse_obj``)."""
+    return read_obj_lines(text.splitlines(), where, STALE_HINT)
 
 
 @lru_cache(maxsize=4)
