@@ -148,10 +148,6 @@ ROOF_MATERIALS: frozenset[str] = frozenset({
 })
 
 
-#: Triangles of an OBJ with their materials (and groups): the shared reader's type.
-ObjMesh = GroupedObj
-
-
 # --------------------------------------------------------------------------- finding and reading
 
 
@@ -172,7 +168,7 @@ def find_obj() -> Path:
                         hint=f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}")
 
 
-def read_obj(path: Path) -> ObjMesh:
+def read_obj(path: Path) -> GroupedObj:
     """Positions, triangles (polygons fan-split) and per-face materials (``usemtl``) of an OBJ file.
 
     Cached per process by path, size and modification time (every exemplar reads the same file).
@@ -187,7 +183,7 @@ def read_obj(path: Path) -> ObjMesh:
 
 
 @lru_cache(maxsize=2)
-def _read_obj(path: str, size: int, mtime_ns: int) -> ObjMesh:
+def _read_obj(path: str, size: int, mtime_ns: int) -> GroupedObj:
     hint = f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}"
     try:
         with open(path, "r", encoding="utf-8", errors="replace") as handle:
@@ -204,7 +200,7 @@ def family_of(material: str) -> str:
     return material.split(":", 1)[0] if ":" in material else ""
 
 
-def face_components(obj: ObjMesh, faces: np.ndarray) -> np.ndarray:
+def face_components(obj: GroupedObj, faces: np.ndarray) -> np.ndarray:
     """(len(faces),) component id of each of ``faces`` (connected through shared vertex positions)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -221,7 +217,7 @@ def face_components(obj: ObjMesh, faces: np.ndarray) -> np.ndarray:
     return labels[corners[:, 0]]
 
 
-def _copies(obj: ObjMesh, faces: np.ndarray, gap: float) -> list[np.ndarray]:
+def _copies(obj: GroupedObj, faces: np.ndarray, gap: float) -> list[np.ndarray]:
     """``faces`` grouped into standing copies: components joined when their X/Z rectangles are ≤ gap apart."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -238,7 +234,7 @@ def _copies(obj: ObjMesh, faces: np.ndarray, gap: float) -> list[np.ndarray]:
     return [np.sort(np.concatenate([g for g, c in zip(groups, copy) if c == k])) for k in range(copy.max() + 1)]
 
 
-def split_buildings(obj: ObjMesh, buildings: Mapping[str, Building] = BUILDINGS,
+def split_buildings(obj: GroupedObj, buildings: Mapping[str, Building] = BUILDINGS,
                     gap: float = GAP) -> dict[str, np.ndarray]:
     """name → sorted face indices of that building (module docstring, "Splitting")."""
     family = np.array([family_of(m) for m in obj.materials] + [""], dtype=object)  # index -1 → ""
@@ -265,7 +261,7 @@ def split_buildings(obj: ObjMesh, buildings: Mapping[str, Building] = BUILDINGS,
     return out
 
 
-def roof_mask(obj: ObjMesh, faces: np.ndarray, rule: str = "materials",
+def roof_mask(obj: GroupedObj, faces: np.ndarray, rule: str = "materials",
               roof_materials: frozenset[str] | set[str] = ROOF_MATERIALS,
               min_up: float = TIER_MIN_UP) -> np.ndarray:
     """(len(faces),) bool: which of a building's faces are roof (module docstring, "Labels")."""
@@ -335,7 +331,7 @@ def surface_voxels(tri: np.ndarray, labels: np.ndarray, origin: np.ndarray, voxe
     return out
 
 
-def labelled_fill(obj: ObjMesh, faces: np.ndarray, roof: np.ndarray, origin: np.ndarray, voxel: float,
+def labelled_fill(obj: GroupedObj, faces: np.ndarray, roof: np.ndarray, origin: np.ndarray, voxel: float,
                   dims: tuple) -> tuple[np.ndarray, np.ndarray]:
     """(body, roof): (X, Y, Z) bool occupancy of a building's body and roof faces on the given grid.
 

@@ -71,8 +71,7 @@ from typing import TYPE_CHECKING, Mapping
 import numpy as np
 
 from pipeline.exemplars import FURNITURE, RESOLUTION, ExemplarError, ExemplarSpec
-from sources.exemplars.obj_text import GroupedObj
-from sources.exemplars.obj_text import parse_obj as read_obj_lines
+from sources.exemplars.obj_text import GroupedObj, parse_obj
 
 if TYPE_CHECKING:
     import trimesh
@@ -291,11 +290,6 @@ def catalogue_entry(path: Path, model: str) -> CatalogueEntry:
 # --------------------------------------------------------------------------- OBJ
 
 
-def parse_obj(text: str, where: str = "OBJ") -> GroupedObj:
-    """Positions, triangles, groups and materials of one model's OBJ text (``obj_text.parse_obj``)."""
-    return read_obj_lines(text.splitlines(), where, STALE_HINT)
-
-
 @lru_cache(maxsize=4)
 def _model_obj(path: str, size: int, mtime_ns: int, model: str) -> GroupedObj:
     try:
@@ -307,7 +301,7 @@ def _model_obj(path: str, size: int, mtime_ns: int, model: str) -> GroupedObj:
         raise ExemplarError(f"cannot read the catalogue {path}: {exc}", file=path,
                             hint=f"reinstall it: sudo apt-get install --reinstall {PACKAGE}") from None
     entry = catalogue_entry(Path(path), model)
-    obj = parse_obj(text, f"{Path(path).name}:{model}")
+    obj = parse_obj(text.splitlines(), f"{Path(path).name}:{model}", STALE_HINT, file=path)
     if entry.rotated:
         raise ExemplarError(f"{model} has a modelRotation, which the 'sweethome' set does not support",
                             file=path, hint="choose another model")
