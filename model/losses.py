@@ -129,6 +129,15 @@ def up_loss(fine: Tensor, coarse: Tensor, stop_gradient: bool = True, factor: in
     return F.mse_loss(fine, F.interpolate(prev, scale_factor=factor, mode="nearest"))
 
 
+def structure_pair(fine: Tensor, coarse: Tensor, lc: LossConfig, factor: int) -> tuple[Tensor, Tensor]:
+    """(L_down, L_up) of one output ``fine`` (B, 1, fX, fY, fZ) against the grid before it, ``coarse`` (B, 1, X, Y, Z).
+
+    ``factor`` f is their resolution ratio; variant, stop-gradient and hinge level come from ``lc``.
+    """
+    return (down_loss(fine, coarse, lc.down_loss, lc.stop_gradient, lc.down_hinge_high, factor=factor),
+            up_loss(fine, coarse, lc.stop_gradient, factor=factor))
+
+
 def structure_losses(outputs: Sequence[Tensor], coarse_input: Tensor, lc: LossConfig) -> dict[str, Tensor]:
     """L_down and L_up summed over all outputs, each against the one before, the first against the coarse input.
 
@@ -140,9 +149,7 @@ def structure_losses(outputs: Sequence[Tensor], coarse_input: Tensor, lc: LossCo
     prevs = [coarse_input.to(outputs[0].dtype), *outputs[:-1]]
     out: dict[str, Tensor] = {}
     for j, (prev, cur) in enumerate(zip(prevs, outputs)):
-        f = cur.shape[-1] // prev.shape[-1]
-        out[f"down{j}"] = down_loss(cur, prev, lc.down_loss, lc.stop_gradient, lc.down_hinge_high, factor=f)
-        out[f"up{j}"] = up_loss(cur, prev, lc.stop_gradient, factor=f)
+        out[f"down{j}"], out[f"up{j}"] = structure_pair(cur, prev, lc, factor=cur.shape[-1] // prev.shape[-1])
     out["down"] = sum(out[f"down{j}"] for j in range(len(outputs)))  # type: ignore[assignment]
     out["up"] = sum(out[f"up{j}"] for j in range(len(outputs)))  # type: ignore[assignment]
     out["total"] = lc.gamma_down * out["down"] + lc.gamma_up * out["up"]

@@ -317,7 +317,7 @@ class Trainer:
         input for the first, pooled by the resolution ratio: 2, or 16 without the
         pyramid), cropped to the window where level j is windowed.
         """
-        from model.losses import discriminator_loss, down_loss, generator_gan_loss, up_loss
+        from model.losses import discriminator_loss, generator_gan_loss, structure_pair
 
         lc, cfg = self.cfg.losses, self.cfg
         content = augmented_sample(self.exemplars, cfg, self.aug, self.tcfg.seed, it)
@@ -336,9 +336,9 @@ class Trainer:
             gan.append(generator_gan_loss(df, m.style, m.global_, alpha)["total"])
             j_prev = levels[k - 1] if k else -1
             prev = v.crop_prev(outs[k - 1] if k else occ, j, j_prev)
-            f = 2 ** (j - j_prev)
-            down.append(down_loss(o, prev, lc.down_loss, lc.stop_gradient, lc.down_hinge_high, factor=f))
-            up.append(up_loss(o, prev, lc.stop_gradient, factor=f))
+            d_j, u_j = structure_pair(o, prev, lc, factor=2 ** (j - j_prev))
+            down.append(d_j)
+            up.append(u_j)
         g_gan, g_down, g_up = sum(gan), sum(down), sum(up)
         g_total = g_gan + lc.gamma_down * g_down + lc.gamma_up * g_up
         self.opt_g.zero_grad(set_to_none=True)
