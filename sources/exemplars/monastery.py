@@ -72,13 +72,14 @@ from __future__ import annotations
 import importlib.util
 import math
 from dataclasses import dataclass
-from functools import lru_cache, partial
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from pipeline.exemplars import RESOLUTION, ExemplarError, ExemplarSpec, fit_voxels
+from sources.exemplars.file_cache import cached_per_file
 from sources.exemplars.obj_text import GroupedObj, parse_obj
 
 if TYPE_CHECKING:
@@ -173,23 +174,17 @@ def read_obj(path: Path) -> GroupedObj:
 
     Cached per process by path, size and modification time (every exemplar reads the same file).
     """
-    path = Path(path).resolve()
-    try:
-        stat = path.stat()
-    except OSError as exc:
-        raise ExemplarError(f"cannot read {path}: {exc.strerror}", file=path,
-                            hint=f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}") from None
-    return _read_obj(str(path), stat.st_size, stat.st_mtime_ns)
-
-
-@lru_cache(maxsize=2)
-def _read_obj(path: str, size: int, mtime_ns: int) -> GroupedObj:
     hint = f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}"
     try:
-        with open(path, "r", encoding="utf-8", errors="replace") as handle:
-            return parse_obj(handle, path, hint, file=path)
+        return _read_obj(path, hint)
     except OSError as exc:
         raise ExemplarError(f"cannot read {path}: {exc.strerror}", file=path, hint=hint) from None
+
+
+@cached_per_file(maxsize=2)
+def _read_obj(path: Path, hint: str) -> GroupedObj:
+    with open(path, "r", encoding="utf-8", errors="replace") as handle:
+        return parse_obj(handle, str(path), hint, file=path)
 
 
 # --------------------------------------------------------------------------- splitting and labelling

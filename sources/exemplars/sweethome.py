@@ -64,13 +64,14 @@ from __future__ import annotations
 import re
 import zipfile
 from dataclasses import dataclass
-from functools import lru_cache, partial
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from pipeline.exemplars import FURNITURE, RESOLUTION, ExemplarError, ExemplarSpec
+from sources.exemplars.file_cache import cached_per_file
 from sources.exemplars.obj_text import GroupedObj, parse_obj
 
 if TYPE_CHECKING:
@@ -250,8 +251,9 @@ def parse_properties(text: str) -> dict[int, dict[str, str]]:
     return items
 
 
-@lru_cache(maxsize=8)
-def _catalogue(path: str, size: int, mtime_ns: int) -> dict[str, CatalogueEntry]:
+@cached_per_file(maxsize=8)
+def read_catalogue(path: Path) -> dict[str, CatalogueEntry]:
+    """OBJ path in the zip → its catalogue entry. Cached per path, size and modification time."""
     try:
         with zipfile.ZipFile(path) as z:
             text = z.read(PROPERTIES).decode("iso-8859-1")
@@ -272,13 +274,6 @@ def _catalogue(path: str, size: int, mtime_ns: int) -> dict[str, CatalogueEntry]
     return out
 
 
-def read_catalogue(path: Path) -> dict[str, CatalogueEntry]:
-    """OBJ path in the zip → its catalogue entry. Cached per path, size and modification time."""
-    path = Path(path).resolve()
-    stat = path.stat()
-    return _catalogue(str(path), stat.st_size, stat.st_mtime_ns)
-
-
 def catalogue_entry(path: Path, model: str) -> CatalogueEntry:
     """The entry of ``model`` (OBJ path in the zip); ExemplarError when the catalogue has none."""
     entry = read_catalogue(path).get(model)
@@ -290,8 +285,9 @@ def catalogue_entry(path: Path, model: str) -> CatalogueEntry:
 # --------------------------------------------------------------------------- OBJ
 
 
-@lru_cache(maxsize=4)
-def _model_obj(path: str, size: int, mtime_ns: int, model: str) -> GroupedObj:
+@cached_per_file(maxsize=4)
+def read_model(path: Path, model: str) -> GroupedObj:
+    """A model of a catalogue, scaled per axis to its catalogue size (metres, min corner at the origin)."""
     try:
         with zipfile.ZipFile(path) as z:
             text = z.read(model).decode("utf-8", errors="replace")
@@ -300,7 +296,7 @@ def _model_obj(path: str, size: int, mtime_ns: int, model: str) -> GroupedObj:
     except (OSError, zipfile.BadZipFile) as exc:
         raise ExemplarError(f"cannot read the catalogue {path}: {exc}", file=path,
                             hint=f"reinstall it: sudo apt-get install --reinstall {PACKAGE}") from None
-    entry = catalogue_entry(Path(path), model)
+    entry = catalogue_entry(path, model)
     obj = parse_obj(text.splitlines(), f"{Path(path).name}:{model}", STALE_HINT, file=path)
     if entry.rotated:
         raise ExemplarError(f"{model} has a modelRotation, which the 'sweethome' set does not support",
@@ -313,13 +309,6 @@ def _model_obj(path: str, size: int, mtime_ns: int, model: str) -> GroupedObj:
         raise ExemplarError(f"{model}: flat model or no catalogue size", file=path, hint="choose another model")
     scaled = (obj.vertices - lo) * (target / extent)
     return GroupedObj(scaled, obj.faces, obj.group, obj.groups, obj.material, obj.materials)
-
-
-def read_model(path: Path, model: str) -> GroupedObj:
-    """A model of a catalogue, scaled per axis to its catalogue size (metres, min corner at the origin)."""
-    path = Path(path).resolve()
-    stat = path.stat()
-    return _model_obj(str(path), stat.st_size, stat.st_mtime_ns, model)
 
 
 # --------------------------------------------------------------------------- labels
