@@ -97,7 +97,7 @@ def pick_outputs(outputs, limit: int | None) -> list:
 
 
 def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int | None = None,
-             device: str = "cpu", progress: Callable[[str], None] | None = None) -> dict:
+             device: str = "cpu", progress: Callable[[str], None] | None = None, dictionary=None) -> dict:
     """Evaluate ``detailizer`` on ``protocol`` (first ``limit`` outputs if given).
 
     Args:
@@ -108,6 +108,9 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
         cls: "full", "quick" or "none".
         device: torch device for the LP search and the Cls classifier.
         progress: callable(line) for progress messages.
+        dictionary: the ``metrics.StyleDictionary`` of ``style_set`` when the caller already has it
+            (several detailizers evaluated in one process: it costs about 2 minutes to build);
+            None = build it here. Its build time is then not in the report's timings.
     Returns:
         The report (see ``write_report``).
     """
@@ -129,8 +132,10 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
 
     t = time.perf_counter()
     exemplars = [ex.full(style_set.resolution) > 0 for ex in style_set.exemplars]
-    dictionary = style_patch_dictionary(exemplars).to(device)
-    timer.add("dictionary_s", time.perf_counter() - t)
+    if dictionary is None:
+        dictionary = style_patch_dictionary(exemplars)
+        timer.add("dictionary_s", time.perf_counter() - t)
+    dictionary = dictionary.to(device)
     say(f"style dictionary: {len(dictionary.occ_count)} occupancy + {len(dictionary.surf_count)} surface patches "
         f"of {len(exemplars)} exemplars ({time.perf_counter() - t:.1f} s)")
     real = fake = None

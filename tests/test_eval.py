@@ -297,3 +297,21 @@ def test_ablation_presets_change_one_thing_each(tmp_path):
     assert no_p.levels == cfg.levels and no_p.losses == cfg.losses  # the losses stay, at ×16
     decor = ablation_configs("decor_gan", cfg, tcfg)[0].losses
     assert decor.gamma_down == decor.gamma_up == 0.0
+
+
+def test_a_given_style_dictionary_gives_the_same_figures(tiny):
+    """evaluate(dictionary=...) (one dictionary for several detailizers) scores as if it built its own."""
+    from model.evaluate import evaluate
+    from model.metrics import style_patch_dictionary
+    from pipeline.detailize import get_detailizer
+    from pipeline.eval_protocol import resolve_protocol_set
+
+    protocol = load_protocol(tiny)
+    sset = resolve_protocol_set(protocol)
+    det = get_detailizer("upsample")
+    own = evaluate(protocol, det, sset, cls="none", limit=3)
+    given = style_patch_dictionary([ex.full(sset.resolution) > 0 for ex in sset.exemplars])
+    shared = evaluate(protocol, det, sset, cls="none", limit=3, dictionary=given)
+    assert [r["lp_iou"] for r in shared["outputs"]] == [r["lp_iou"] for r in own["outputs"]]
+    assert [r["lp_f"] for r in shared["outputs"]] == [r["lp_f"] for r in own["outputs"]]
+    assert "dictionary_s" in own["timings"] and "dictionary_s" not in shared["timings"]
