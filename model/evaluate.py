@@ -233,6 +233,9 @@ def markdown(report: dict) -> str:
     """The report as markdown: a table of the means, groups, Cls details, timings and the machine."""
     det = report["detailizer"]
     name = det.get("name", "?") + (f" ({Path(det['checkpoint']).name})" if det.get("checkpoint") else "")
+    ablation = (det.get("training") or {}).get("ablation")
+    if ablation and ablation != "full":  # a Table 4 row or baseline trained by the same code (model.ablations)
+        name += f", ablation `{ablation}`"
     m, t, mach = report["means"], report["timings"], report["machine"]
     p = report["protocol"]
     lines = [

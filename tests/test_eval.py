@@ -315,3 +315,18 @@ def test_a_given_style_dictionary_gives_the_same_figures(tiny):
     assert [r["lp_iou"] for r in shared["outputs"]] == [r["lp_iou"] for r in own["outputs"]]
     assert [r["lp_f"] for r in shared["outputs"]] == [r["lp_f"] for r in own["outputs"]]
     assert "dictionary_s" in own["timings"] and "dictionary_s" not in shared["timings"]
+
+
+def test_markdown_names_the_ablation_a_checkpoint_was_trained_as():
+    from model.evaluate import markdown
+
+    def report(training):
+        return {"detailizer": {"name": "decollage", "checkpoint": "/x/row.pt", "training": training},
+                "means": {k: 0.5 for k in ("strict_iou", "loose_iou", "lp_iou", "lp_f", "cls")},
+                "timings": {"total_s": 1.0, "per_output_all_in_s": 1.0}, "machine": {},
+                "protocol": {"name": "p", "evaluated": 1, "outputs": 1}, "cls_variant": "none", "cls": None,
+                "groups": {}, "style_set": {"matches_protocol": True}}
+
+    assert "| decollage (row.pt), ablation `decor_gan` | 1 |" in markdown(report({"ablation": "decor_gan"}))
+    assert "| decollage (row.pt) | 1 |" in markdown(report({"ablation": "full"}))
+    assert "| decollage (row.pt) | 1 |" in markdown(report({}))
