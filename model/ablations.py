@@ -2,9 +2,11 @@
 
 Each entry changes the full model's ``ModelConfig`` / ``TrainConfig`` in one
 way; ``ablation_configs(name, cfg, tcfg)`` returns the pair to train with.
-Training them is not done here (CPU budget); train each at the same reduced
-budget (``decollage train --ablation NAME``, which records the name in the
-checkpoint's training meta) and evaluate with ``decollage eval --checkpoint``.
+Training them is not done here: ``scripts/train_ablations.sh`` trains every row
+at one reduced budget (``decollage train --ablation NAME``, which records the
+name in the checkpoint's training meta) and ``benchmarks/eval_ablations.py``
+evaluates and tabulates them; docs/benchmarks.md has the rows at 150
+iterations, R = 128.
 
 The pyramid rows (``ModelConfig.pyramid``; paper Table 4 (a) vs (b)–(i)):
 
