@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Train every Table 4 row of model/ablations.py (the full model, its ablations and
 # the DECOR-GAN* baseline) at one reduced budget, two runs at a time on one
-# thread each (on 2 cores that is ~1.6x the throughput of one run on two threads).
+# thread each (measured on 2 cores: ~1.25x the throughput of one run on two threads).
 #
 #   bash scripts/train_ablations.sh [OUT=out/ablations] [STEPS=150] [RES=128]
 #
