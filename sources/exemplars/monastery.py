@@ -87,6 +87,7 @@ if TYPE_CHECKING:
 
 PACKAGE = "pybullet_data"
 PIP_REQUIREMENT = "pybullet==3.2.7"
+REINSTALL_HINT = f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}"
 OBJ_NAME = "samurai_monastry.obj"
 SOURCE = "pybullet_data samurai_monastry.obj"
 LICENCE = ("unclear: no licence stated for this model; distributed in pybullet 3.2.7's pybullet_data, "
@@ -165,8 +166,7 @@ def find_obj() -> Path:
     if spec is None:
         raise ExemplarError(f"the 'monastery' set needs the Python package {PACKAGE} (from PyPI pybullet), "
                             "which is not installed", field="set", hint=INSTALL_HINT)
-    raise ExemplarError(f"{PACKAGE} is installed but has no {OBJ_NAME}", field="set",
-                        hint=f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}")
+    raise ExemplarError(f"{PACKAGE} is installed but has no {OBJ_NAME}", field="set", hint=REINSTALL_HINT)
 
 
 def read_obj(path: Path) -> GroupedObj:
@@ -174,17 +174,16 @@ def read_obj(path: Path) -> GroupedObj:
 
     Cached per process by path, size and modification time (every exemplar reads the same file).
     """
-    hint = f"reinstall it: pip install --force-reinstall {PIP_REQUIREMENT}"
     try:
-        return _read_obj(path, hint)
+        return _read_obj(path)
     except OSError as exc:
-        raise ExemplarError(f"cannot read {path}: {exc.strerror}", file=path, hint=hint) from None
+        raise ExemplarError(f"cannot read {path}: {exc.strerror}", file=path, hint=REINSTALL_HINT) from None
 
 
 @cached_per_file(maxsize=2)
-def _read_obj(path: Path, hint: str) -> GroupedObj:
+def _read_obj(path: Path) -> GroupedObj:
     with open(path, "r", encoding="utf-8", errors="replace") as handle:
-        return parse_obj(handle, str(path), hint, file=path)
+        return parse_obj(handle, str(path), REINSTALL_HINT, file=path)
 
 
 # --------------------------------------------------------------------------- splitting and labelling

@@ -84,6 +84,7 @@ FURNITURE_DIR = Path("/usr/share/sweethome3d/furniture")
 PROPERTIES = "PluginFurnitureCatalog.properties"
 INSTALL_HINT = f"run: bash scripts/install.sh exemplars (or: sudo apt-get install -y {PACKAGE})"
 STALE_HINT = f"the label map was written for {PACKAGE} {PACKAGE_VERSION}"
+REINSTALL_HINT = f"reinstall it: sudo apt-get install --reinstall {PACKAGE}"
 #: Catalogue → licence of its models.
 LICENCES = {"BlendSwap-CC-0": "CC0-1.0", "BlendSwap-CC-BY": "CC-BY-3.0", "Scopia": "CC-BY-3.0",
             "KatorLegaz": "CC-BY-3.0-US", "Reallusion": "CC-BY-3.0-US"}
@@ -233,7 +234,7 @@ def catalogue_path(catalogue: str, folder: Path | None = None) -> Path:
         raise ExemplarError(f"the 'sweethome' set needs the Debian package {PACKAGE}, which is not installed "
                             f"({folder} does not exist)", field="set", hint=INSTALL_HINT)
     raise ExemplarError(f"{PACKAGE} has no catalogue {path.name}", file=folder, field="set",
-                        hint=f"reinstall it: sudo apt-get install --reinstall {PACKAGE}")
+                        hint=REINSTALL_HINT)
 
 
 def _unescape(value: str) -> str:
@@ -259,7 +260,7 @@ def read_catalogue(path: Path) -> dict[str, CatalogueEntry]:
             text = z.read(PROPERTIES).decode("iso-8859-1")
     except (OSError, zipfile.BadZipFile, KeyError) as exc:
         raise ExemplarError(f"cannot read the catalogue {path}: {exc}", file=path,
-                            hint=f"reinstall it: sudo apt-get install --reinstall {PACKAGE}") from None
+                            hint=REINSTALL_HINT) from None
     out: dict[str, CatalogueEntry] = {}
     for item in parse_properties(text).values():
         if "model" not in item:
@@ -292,12 +293,12 @@ def read_model(path: Path, model: str) -> GroupedObj:
         with zipfile.ZipFile(path) as z:
             text = z.read(model).decode("utf-8", errors="replace")
     except KeyError:
-        raise ExemplarError(f"catalogue {Path(path).name} has no file {model}", file=path, hint=STALE_HINT) from None
+        raise ExemplarError(f"catalogue {path.name} has no file {model}", file=path, hint=STALE_HINT) from None
     except (OSError, zipfile.BadZipFile) as exc:
         raise ExemplarError(f"cannot read the catalogue {path}: {exc}", file=path,
-                            hint=f"reinstall it: sudo apt-get install --reinstall {PACKAGE}") from None
+                            hint=REINSTALL_HINT) from None
     entry = catalogue_entry(path, model)
-    obj = parse_obj(text.splitlines(), f"{Path(path).name}:{model}", STALE_HINT, file=path)
+    obj = parse_obj(text.splitlines(), f"{path.name}:{model}", STALE_HINT, file=path)
     if entry.rotated:
         raise ExemplarError(f"{model} has a modelRotation, which the 'sweethome' set does not support",
                             file=path, hint="choose another model")
