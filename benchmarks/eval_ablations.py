@@ -22,6 +22,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from model.ablations import ABLATIONS  # noqa: E402
+from model.evaluate import METRICS  # noqa: E402
 
 LOSS_TAIL = 25  # iterations the end-of-training losses are averaged over
 
@@ -78,7 +79,7 @@ def table(out: Path) -> str:
             lines.append(f"| `{row}` | {label} | not trained | | | | | | | | |")
             continue
         mm = (f["eval"] or {}).get("means") or {}
-        ev = [_fmt(mm.get(k)) for k in ("strict_iou", "loose_iou", "lp_iou", "lp_f", "cls")] if f["eval"] \
+        ev = [_fmt(mm.get(k)) for k in (*METRICS, "cls")] if f["eval"] \
             else ["not evaluated", "", "", "", ""]
         lines.append(f"| `{row}` | {label} | {f['steps']} | {f['s_per_iter']:.2f} | {_fmt(f['recon_end'])} | "
                      f"{_fmt(f['gan_end'])} | " + " | ".join(ev) + " |")
@@ -93,7 +94,7 @@ def evaluate_rows(out: Path, limit: int, cls: str, say=print) -> None:
     """Evaluate every trained row not yet evaluated with this ``limit`` and ``cls`` (see the module docstring)."""
     import torch
 
-    from model.evaluate import evaluate, write_report
+    from model.evaluate import evaluate, exemplar_shapes, write_report
     from model.infer import cpu_threads
     from model.metrics import style_patch_dictionary
     from pipeline.detailize import get_detailizer
@@ -118,7 +119,7 @@ def evaluate_rows(out: Path, limit: int, cls: str, say=print) -> None:
     protocol = load_protocol()
     style_set = resolve_protocol_set(protocol)
     t = time.perf_counter()
-    dictionary = style_patch_dictionary([ex.full(style_set.resolution) > 0 for ex in style_set.exemplars])
+    dictionary = style_patch_dictionary(exemplar_shapes(style_set))
     say(f"style dictionary built in {time.perf_counter() - t:.0f} s; evaluating {', '.join(todo)}")
     for row in todo:
         det = get_detailizer("decollage", str(out / f"{row}.pt"), "cpu")
@@ -126,7 +127,7 @@ def evaluate_rows(out: Path, limit: int, cls: str, say=print) -> None:
         report = evaluate(protocol, det, style_set, cls=cls, limit=limit, device="cpu", dictionary=dictionary)
         write_report(report, out / f"eval_{row}")
         m = report["means"]
-        say(f"{row}: " + ", ".join(f"{k} {m[k]:.3f}" for k in ("strict_iou", "loose_iou", "lp_iou", "lp_f", "cls")
+        say(f"{row}: " + ", ".join(f"{k} {m[k]:.3f}" for k in (*METRICS, "cls")
                                    if m.get(k) is not None) + f" ({report['timings']['total_s']:.0f} s)")
 
 

@@ -96,6 +96,12 @@ def pick_outputs(outputs, limit: int | None) -> list:
     return [outputs[i * len(outputs) // limit] for i in range(limit)]
 
 
+def exemplar_shapes(style_set) -> list[np.ndarray]:
+    """The style set's exemplars as (R, R, R) bool occupancy at its resolution R (the LP dictionary's
+    and the real Cls views' source)."""
+    return [ex.full(style_set.resolution) > 0 for ex in style_set.exemplars]
+
+
 def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int | None = None,
              device: str = "cpu", progress: Callable[[str], None] | None = None, dictionary=None) -> dict:
     """Evaluate ``detailizer`` on ``protocol`` (first ``limit`` outputs if given).
@@ -131,7 +137,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
         raise ValueError(f"unknown Cls variant {cls!r}")
 
     t = time.perf_counter()
-    exemplars = [ex.full(style_set.resolution) > 0 for ex in style_set.exemplars]
+    exemplars = exemplar_shapes(style_set)
     if dictionary is None:
         dictionary = style_patch_dictionary(exemplars)
         timer.add("dictionary_s", time.perf_counter() - t)

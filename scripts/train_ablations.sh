@@ -23,5 +23,7 @@ train_row() {
   echo "$(date -u +%H:%M:%S) trained $1"
 }
 for ((i = 0; i < ${#ROWS[@]}; i += 2)); do
-  train_row "${ROWS[i]}" & train_row "${ROWS[i+1]}" & wait
+  train_row "${ROWS[i]}" & first=$!
+  train_row "${ROWS[i+1]}" & second=$!
+  wait "$first"; wait "$second"  # each wait returns its row's status: a failed row stops the script
 done
