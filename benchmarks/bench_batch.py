@@ -31,7 +31,7 @@ def _rss():
                    "worker_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024}, f)
 atexit.register(_rss)
 sys.argv = ["decollage", *sys.argv[1:]]
-from pipeline.cli import main
+from cli.app import main
 main()
 """
 

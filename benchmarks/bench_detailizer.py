@@ -4,7 +4,7 @@ Run from the repository root::
 
     .venv/bin/python benchmarks/bench_detailizer.py [--checkpoint model/weights/things.pt] [--device cpu]
 
-The measurement itself lives in ``pipeline.benchmarking.measure_detailizer``
+The measurement itself lives in ``evaluation.benchmarking.measure_detailizer``
 (also used by ``decollage bench``, which writes docs/benchmarks.md): a
 house-like 16³ grid (a 12×9×12 body, a stepped roof, 1 empty cell of margin,
 two parts and two styles), each detailizer in a fresh child process so the
@@ -23,7 +23,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from pipeline.benchmarking import measure_detailizer  # noqa: E402
+from evaluation.benchmarking import measure_detailizer  # noqa: E402
 
 
 def main(argv: list[str]) -> None:

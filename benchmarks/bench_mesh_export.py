@@ -22,10 +22,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pipeline.export import ENCODERS, export_mesh  # noqa: E402
-from pipeline.grid import ISO_LEVEL, FineGrid  # noqa: E402
+from core.grid import ISO_LEVEL, FineGrid  # noqa: E402
 from pipeline.mesh import MeshSettings, _crop_padded, _decimate, _marching_cubes, mesh_fine_grid  # noqa: E402
-from pipeline.preview import render_preview  # noqa: E402
-from pipeline.recipe import ExportFormat, Pivot  # noqa: E402
+from geometry.preview import render_preview  # noqa: E402
+from core.recipe import ExportFormat, Pivot  # noqa: E402
 
 
 def chair_field(n: int = 256, seed: int = 0) -> FineGrid:

@@ -22,8 +22,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from model.metrics import lp_scores, strict_loose_iou, style_patch_dictionary  # noqa: E402
-from model.render_eval import render_views  # noqa: E402
+from core.structure import strict_loose_iou  # noqa: E402
+from evaluation.lp import lp_scores  # noqa: E402
+from evaluation.patch_index import style_patch_dictionary  # noqa: E402
+from evaluation.render_eval import render_views  # noqa: E402
 
 
 def noisy_shape(kind: int, seed: int, res: int, rough: bool = False) -> np.ndarray:
@@ -94,7 +96,7 @@ def main() -> None:
         print(f"output {n}{' (rough)' if rough else ''}: strict {strict:.3f} loose {loose:.3f} ({t_iou:.2f} s)  "
               f"LP-IOU {lp_iou:.3f} LP-F {lp_f:.3f} ({t_lp:.2f} s)")
     if args.views:
-        from model.render_eval import surface_voxels
+        from evaluation.render_eval import surface_voxels
 
         t = time.perf_counter()
         voxels = surface_voxels(styles[0])
@@ -102,7 +104,7 @@ def main() -> None:
         t = time.perf_counter()
         render_views(voxels, n_views=args.views, seed=0)
         per_view = (time.perf_counter() - t) / args.views
-        print(f"render (model/render_eval.py): exposed voxels {len(voxels)} in {prep * 1e3:.0f} ms, then "
+        print(f"render (evaluation/render_eval.py): exposed voxels {len(voxels)} in {prep * 1e3:.0f} ms, then "
               f"{per_view * 1e3:.1f} ms per view → 24 views of 320 outputs ≈ "
               f"{(prep + 24 * per_view) * 320 / 60:.1f} min")
     for label, sel in (("smooth", times[: args.outputs]), ("rough", times[args.outputs :])):

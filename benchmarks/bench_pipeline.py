@@ -5,7 +5,7 @@ Run from the repository root:  ``.venv/bin/python benchmarks/bench_pipeline.py [
 Every asset is built once to warm up imports and caches (build123d alone takes
 seconds to import), then ``REPEATS`` more times; the table gives the median of
 those, per stage and in total, in seconds. Outputs go to a temporary folder.
-The measurement lives in ``pipeline.benchmarking.bench_assets`` (also used by
+The measurement lives in ``evaluation.benchmarking.bench_assets`` (also used by
 ``decollage bench``).
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from pipeline.benchmarking import STAGES, bench_assets  # noqa: E402
+from evaluation.benchmarking import STAGES, bench_assets  # noqa: E402
 
 REPEATS = 3
 

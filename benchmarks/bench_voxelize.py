@@ -1,7 +1,7 @@
 """Voxelizer timings on large watertight meshes (not a test; prints a small table).
 
 Run: ``python benchmarks/bench_voxelize.py`` from the repository root. Each row
-is the best of ``REPEATS`` runs of ``pipeline.voxelize.solid_occupancy`` (the
+is the best of ``REPEATS`` runs of ``geometry.voxelize.solid_occupancy`` (the
 fill itself) and of ``voxelize`` (fill + labels + grid sizing), in milliseconds.
 """
 
@@ -15,8 +15,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from pipeline.recipe import FitMode, GridSettings  # noqa: E402
-from pipeline.voxelize import solid_occupancy, voxelize  # noqa: E402
+from core.recipe import FitMode, GridSettings  # noqa: E402
+from geometry.voxelize import solid_occupancy, voxelize  # noqa: E402
 from sources.base import PartMeshes  # noqa: E402
 
 REPEATS = 5

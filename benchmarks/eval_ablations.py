@@ -22,7 +22,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from model.ablations import ABLATIONS  # noqa: E402
-from model.evaluate import METRICS  # noqa: E402
+from evaluation.evaluate import METRICS  # noqa: E402
 
 LOSS_TAIL = 25  # iterations the end-of-training losses are averaged over
 
@@ -94,12 +94,12 @@ def evaluate_rows(out: Path, limit: int, cls: str, say=print) -> None:
     """Evaluate every trained row not yet evaluated with this ``limit`` and ``cls`` (see the module docstring)."""
     import torch
 
-    from model.evaluate import evaluate, exemplar_shapes, write_report
+    from evaluation.evaluate import evaluate, exemplar_shapes, write_report
     from model.infer import cpu_threads
-    from model.metrics import style_patch_dictionary
-    from pipeline.detailize import get_detailizer
-    from pipeline.eval_protocol import check_detailizer, load_protocol, resolve_protocol_set
-    from pipeline.export import ensure_writable_dir
+    from evaluation.patch_index import style_patch_dictionary
+    from core.detailizer import get_detailizer
+    from evaluation.protocol import check_detailizer, load_protocol, resolve_protocol_set
+    from core.files import ensure_writable_dir
 
     torch.set_num_threads(cpu_threads())
     todo = []
@@ -142,7 +142,7 @@ def main() -> None:
     text = table(args.out)
     print(text)
     if args.doc:
-        from pipeline.benchmarking import write_doc_section
+        from evaluation.benchmarking import write_doc_section
 
         write_doc_section(args.doc, "ablations", text)
         print(f"wrote the 'ablations' section of {args.doc}", file=sys.stderr)

@@ -1,4 +1,4 @@
-"""Write the evaluation protocol ``model/protocol/things_v1.{json,npz}`` (deterministic; see pipeline/eval_protocol.py).
+"""Write the evaluation protocol ``evaluation/protocols/things_v1.{json,npz}`` (deterministic; see evaluation/protocol.py).
 
 Run from the repository root::
 
@@ -18,8 +18,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from pipeline.errors import DecollageError  # noqa: E402
-from pipeline.eval_protocol import PROTOCOL_DIR, load_protocol, make_protocol  # noqa: E402
+from core.errors import DecollageError  # noqa: E402
+from evaluation.protocol import PROTOCOL_DIR, load_protocol, make_protocol  # noqa: E402
 
 
 def main(argv: list[str]) -> int:

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from model.config import ModelConfig
-from pipeline.errors import DetailizeError
+from core.errors import DetailizeError
 
 #: Value of the ``"format"`` entry; anything else is a foreign file.
 FORMAT_NAME = "decollage-checkpoint"

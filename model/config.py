@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any
 
-from pipeline.errors import DetailizeError
+from core.errors import DetailizeError
 
 
 class Upsampler(str, Enum):

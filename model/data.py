@@ -7,7 +7,7 @@ from ``numpy.random.Generator`` seeded by ``(seed, step, stream)`` (no global RN
 so sample ``step`` of a run is the same whenever it is drawn (also after a resume).
 
 This module does not read dataset files: ``Exemplar`` is a minimal in-memory type
-that a loader (``pipeline/exemplars.py``'s sets) converts into.
+that a loader (``stylesets/format.py``'s sets) converts into.
 
 Label convention: ``labels`` arrays are int16, ``EMPTY`` (−1) where unoccupied,
 else an index into the *set-level* part vocabulary shared by all exemplars
@@ -57,8 +57,8 @@ import numpy as np
 
 from model.config import LossConfig, ModelConfig, TargetSmoothing
 from model.masks import StyledCoarse, coarse_part_labels, fill_nearest
-from pipeline.errors import DetailizeError
-from pipeline.grid import EMPTY, ISO_LEVEL
+from core.errors import DetailizeError
+from core.grid import EMPTY, ISO_LEVEL
 
 
 @dataclass(frozen=True, eq=False)
@@ -440,7 +440,7 @@ def style_sample(exemplars: Sequence[Exemplar], style: int, cfg: ModelConfig, au
 
 
 def exemplars_from_set(style_set) -> list[Exemplar]:
-    """A loaded ``pipeline.exemplars.StyleSet`` → training exemplars, in the set's order.
+    """A loaded ``stylesets.format.StyleSet`` → training exemplars, in the set's order.
 
     The set stores uint8 labels (0 empty, ``i + 1`` = vocabulary part ``i``) cropped
     to each exemplar's box; here they become int16 (``EMPTY``, part index) and the

@@ -35,8 +35,8 @@ from model.checkpoint import FORMAT_VERSION, Checkpoint, load_checkpoint
 from model.masks import fill_nearest
 from model.upsample import fill_styles_everywhere, nearest_upsample
 from model.windows import blockwise_forward
-from pipeline.errors import DetailizeError
-from pipeline.grid import FineGrid, LabeledGrid
+from core.errors import DetailizeError
+from core.grid import FineGrid, LabeledGrid
 
 #: The shipped model, used when no checkpoint is given.
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "things.pt"

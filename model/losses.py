@@ -20,8 +20,8 @@ from torch.nn import functional as F
 
 from model.config import DownLoss, LossConfig, ModelConfig
 from model.masks import DOutputMasks, StyledCoarse, align_to_d_output
-from pipeline.errors import DetailizeError
-from pipeline.grid import ISO_LEVEL
+from core.errors import DetailizeError
+from core.grid import ISO_LEVEL
 
 
 def _batched(mask: Tensor | float, like: Tensor) -> Tensor | float:

@@ -1,6 +1,6 @@
 """Part, style, discriminator-output and joint masks (method.md §1.3).
 
-Label convention at this interface: ``pipeline.grid.EMPTY`` (−1) marks empty voxels
+Label convention at this interface: ``core.grid.EMPTY`` (−1) marks empty voxels
 in *inputs*; part indices are 0..P−1 (the reference's 1..P shifted down). Coarse
 labels returned here carry a valid part at every cell (empty cells are filled from
 the nearest occupied cell), because the generator needs a style for every voxel.
@@ -23,8 +23,8 @@ from typing import NamedTuple
 import numpy as np
 
 from model.config import DiscriminatorSpec
-from pipeline.errors import DetailizeError
-from pipeline.grid import EMPTY
+from core.errors import DetailizeError
+from core.grid import EMPTY
 
 
 def _check_divisible(shape: tuple[int, ...], factor: int, what: str) -> None:

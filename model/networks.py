@@ -16,7 +16,7 @@ from torch import Tensor, nn
 from torch.nn import functional as F
 
 from model.config import DiscriminatorSpec, LevelSpec, ModelConfig, Upsampler
-from pipeline.errors import DetailizeError
+from core.errors import DetailizeError
 
 
 def leaky_clamp(x: Tensor, slope: float = 0.002) -> Tensor:

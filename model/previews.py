@@ -6,7 +6,7 @@ generator makes of that exemplar's coarse grid (bottom row), plus one held-out
 augmented, style-mixed content (last column, generated only). The inputs are drawn
 from a fixed seed, so previews of successive steps are comparable. The output is a
 PNG of ``n + 1`` columns × 2 rows of ``tile_px`` tiles, grey meshes at the iso level
-0.4, headless (``pipeline.preview``'s numpy renderer).
+0.4, headless (``geometry.preview``'s numpy renderer).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 
 from model.config import ModelConfig
 from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, style_sample
-from pipeline.grid import ISO_LEVEL
+from core.grid import ISO_LEVEL
 
 if TYPE_CHECKING:
     from PIL import Image
@@ -32,7 +32,7 @@ def _tile(volume: np.ndarray, tile_px: int) -> "Image.Image":
     import trimesh
     from PIL import Image
 
-    from pipeline.preview import render_preview
+    from geometry.preview import render_preview
 
     if volume.max(initial=0.0) <= ISO_LEVEL:  # nothing to mesh (the padding below is always empty)
         return Image.new("RGB", (tile_px, tile_px), (235, 235, 235))

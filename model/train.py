@@ -51,7 +51,7 @@ Resuming (``resume=True`` and ``last.pt`` present) restores the step, all weight
 both optimizers and the torch RNG; the data of iteration ``i`` is a pure function
 of (seed, i), so a resumed run draws exactly the samples an unbroken run would.
 
-Intended CLI (``pipeline/cli.py`` will map it onto ``train``)::
+Intended CLI (``cli/app.py`` will map it onto ``train``)::
 
     decollage train --set things --out runs/things --steps 3000 [--resolution 128]
                     [--seed 0] [--device auto|cpu|cuda] [--layout lean|paper]
@@ -78,7 +78,7 @@ from model.config import ModelConfig
 from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, rng_for, style_sample
 from model.masks import DOutputMasks, StyledCoarse
 from model.windows import Window, halo_cells, window_forward  # noqa: F401 - part of this module's API
-from pipeline.errors import DetailizeError
+from core.errors import DetailizeError
 
 
 @dataclass(frozen=True)

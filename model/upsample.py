@@ -12,7 +12,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.special import ndtr
 
-from pipeline.grid import UPSAMPLE_FACTOR, FineGrid, LabeledGrid
+from core.grid import UPSAMPLE_FACTOR, FineGrid, LabeledGrid
 
 #: Blur of the nearest-upsampled occupancy, in fine voxels. A quarter of a coarse
 #: cell at ×16: edges round off visibly while one-voxel features survive the 0.4 iso.

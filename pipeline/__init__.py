@@ -1,3 +1,1 @@
-"""decollage content pipeline: recipes, grids, voxelization, meshing, export, CLI."""
-
-__version__ = "0.1.0"
+"""The content flow: regions, detailize, mesh, engines, export, build, cache, executors, manifest."""

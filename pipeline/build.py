@@ -20,9 +20,11 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pipeline.cache import asset_key, remove_stale_temporaries, sha256_file, valid_record, write_record
-from pipeline.errors import DecollageError, RecipeError
-from pipeline.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset, LoadedRecipe, parse_recipe
+from pipeline.cache import asset_key, remove_stale_temporaries, valid_record, write_record
+from core.files import sha256_file
+from core.errors import DecollageError, RecipeError
+from core.structure import strict_loose_iou
+from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset, LoadedRecipe, parse_recipe
 
 
 @dataclass
@@ -95,7 +97,7 @@ def _detailizer_of(asset: Asset, loaded: LoadedRecipe, override: str | None) -> 
 
 def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -> None:
     """Static checks before building. Raises RecipeError naming file and field."""
-    from pipeline.detailize import get_detailizer
+    from core.detailizer import get_detailizer
 
     for i, asset in enumerate(loaded.recipe.assets):
         where, variant = loaded.where(i)
@@ -127,7 +129,7 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
 def plan_build(loaded: LoadedRecipe, out_dir: Path, detailizer_override: str | None = None,
                only: Callable[[Asset], bool] | None = None, force: bool = False) -> list[PlannedAsset]:
     """Content keys of the selected assets, and which of them are up to date in ``out_dir``."""
-    from pipeline.detailize import effective_checkpoint
+    from core.detailizer import effective_checkpoint
 
     planned, weight_hashes = [], {}
     for i, asset in enumerate(loaded.recipe.assets):
@@ -195,12 +197,12 @@ def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progr
 
 def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progress,
            report: AssetReport, detailizer_override: str | None) -> None:
-    from pipeline.detailize import get_detailizer
+    from core.detailizer import get_detailizer
     from pipeline.engines import make_collision, make_lods
     from pipeline.export import apply_pivot, export_asset
     from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
     from pipeline.regions import apply_regions
-    from pipeline.voxelize import voxelize
+    from geometry.voxelize import voxelize
     from sources import load_source
 
     report.inputs = {
@@ -272,11 +274,9 @@ def _structure(fine, grid) -> dict:
     """How well the detailed shape keeps the coarse one: the paper's Strict- and Loose-IOU.
 
     The fine occupancy binarised at 0.4 and max-pooled ×16 against the coarse
-    occupancy (``model.metrics.strict_loose_iou``): strict = |D∧C|/|D∨C|,
+    occupancy (``core/structure.py``): strict = |D∧C|/|D∨C|,
     loose = |D∧C|/|C|; 1 is perfect.
     """
-    from model.metrics import strict_loose_iou
-
     factor = fine.shape[0] // grid.shape[0]
     strict, loose = strict_loose_iou(fine.occupancy, grid.occupancy, factor)
     return {"strict_iou": round(strict, 4), "loose_iou": round(loose, 4)}
@@ -315,7 +315,7 @@ def build_recipe(loaded: LoadedRecipe, out_dir: Path, progress: Progress | None 
     On KeyboardInterrupt the manifest of what finished is written before re-raising.
     """
     from pipeline.executors import LocalExecutor
-    from pipeline.export import ensure_writable_dir
+    from core.files import ensure_writable_dir
     from pipeline.manifest import write_manifest
 
     progress = progress or Progress()

@@ -17,7 +17,8 @@ import json
 from importlib import metadata
 from pathlib import Path
 
-from pipeline import __version__
+from core import __version__
+from core.files import sha256_file
 
 RECORD_DIR = ".decollage"
 RECORD_FORMAT = 1
@@ -25,27 +26,6 @@ RECORD_FORMAT = 1
 #: Distributions whose versions change the bytes of the outputs.
 KEY_LIBRARIES = ("numpy", "scipy", "scikit-image", "trimesh", "fast-simplification", "fonttools", "manifold3d",
                  "shapely", "mapbox-earcut", "build123d", "torch", "Pillow")
-
-
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def code_digest(*modules: str) -> str:
-    """sha256 of project source files given relative to the repository root (``"pipeline/voxelize.py"``).
-
-    Part of cache keys whose results depend on that code: an edit to any of them
-    changes the key; other files do not matter.
-    """
-    root = Path(__file__).resolve().parent.parent
-    digest = hashlib.sha256()
-    for rel in modules:
-        digest.update(rel.encode() + b"\0" + (root / rel).read_bytes() + b"\0")
-    return digest.hexdigest()
 
 
 def library_versions() -> dict[str, str]:
@@ -84,7 +64,7 @@ def record_path(out_dir: Path, name: str) -> Path:
 
 def write_record(out_dir: Path, name: str, key: str, entry: dict) -> None:
     """Record that ``name`` was built with ``key`` (after its outputs are in place)."""
-    from pipeline.export import write_bytes_atomic
+    from core.files import write_bytes_atomic
 
     (out_dir / RECORD_DIR).mkdir(exist_ok=True)
     # Key order is kept: a cached entry must serialise exactly like a fresh one.

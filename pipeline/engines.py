@@ -31,13 +31,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pipeline.errors import MeshingError
-from pipeline.recipe import CollisionKind, EngineProfile
+from core.errors import MeshingError
+from core.recipe import CollisionKind, EngineProfile
 
 if TYPE_CHECKING:
     import trimesh
 
-    from pipeline.grid import FineGrid, LabeledGrid
+    from core.grid import FineGrid, LabeledGrid
 
 #: Most boxes a ``boxes`` collision may have (engines slow down with many convex pieces).
 MAX_COLLISION_BOXES = 64

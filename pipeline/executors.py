@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Sequence
 
-from pipeline.errors import UsageError
+from core.errors import UsageError
 
 #: Seconds to wait for a cluster scheduler before giving up.
 CONNECT_TIMEOUT_S = 10
@@ -38,7 +38,7 @@ def _worker_init(threads: int) -> None:
     import pipeline.build  # noqa: F401
     import pipeline.export  # noqa: F401
     import pipeline.mesh  # noqa: F401
-    import pipeline.preview  # noqa: F401
+    import geometry.preview  # noqa: F401
 
     try:
         import torch

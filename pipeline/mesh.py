@@ -24,14 +24,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pipeline.errors import MeshingError
-from pipeline.grid import ISO_LEVEL, FineGrid
+from core.errors import MeshingError
+from core.grid import ISO_LEVEL, FineGrid
 from pipeline.palette import palette_rgba
 
 if TYPE_CHECKING:
     import trimesh
 
-    from pipeline.recipe import ExportSettings
+    from core.recipe import ExportSettings
 
 # Taubin's classic pass-band choice: λ = 0.5, μ = -0.53 (k_PB ≈ 0.1) removes the
 # marching-cubes staircase with almost no shrinkage.

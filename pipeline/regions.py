@@ -15,10 +15,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pipeline.errors import RecipeError
-from pipeline.grid import EMPTY, LabeledGrid
-from pipeline.recipe import FROM_SOURCE, RegionRule
-from pipeline.voxelize import PartGrid
+from core.errors import RecipeError
+from core.grid import EMPTY, LabeledGrid
+from core.recipe import FROM_SOURCE, RegionRule
+from geometry.voxelize import PartGrid
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 

@@ -1,6 +1,6 @@
 """What every source produces, and the small protocol a source implements.
 
-A source turns its typed spec (from ``pipeline/recipe.py``) into named parts in
+A source turns its typed spec (from ``core/recipe.py``) into named parts in
 the canonical frame: +Y up, front +Z, metres. It never voxelizes (except the
 ``voxels`` source, whose input already *is* voxels) and never sees tensors.
 """
@@ -71,7 +71,7 @@ SourceResult = Union[PartMeshes, PartVoxels]
 class Source(Protocol):
     """One module per source kind exposes ``load(spec, base_dir) -> SourceResult``.
 
-    ``spec`` is the kind's pydantic model from ``pipeline/recipe.py``; ``base_dir``
+    ``spec`` is the kind's pydantic model from ``core/recipe.py``; ``base_dir``
     is the recipe file's folder, against which relative paths resolve. Errors
     are raised as ``SourceError`` with ``field`` set relative to the source
     (e.g. ``"font"``); the caller prefixes the asset path.

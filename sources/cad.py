@@ -42,8 +42,8 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from pipeline.errors import SourceError
-from pipeline.recipe import (
+from core.errors import SourceError
+from core.recipe import (
     BooleanShape,
     BoxShape,
     CadSource,

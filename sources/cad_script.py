@@ -55,8 +55,8 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from pipeline.errors import SourceError
-from pipeline.recipe import NAME_PATTERN, CadSource
+from core.errors import SourceError
+from core.recipe import NAME_PATTERN, CadSource
 from sources.base import PartMeshes
 
 #: Wall-clock limit for one cadquery script run (subprocess start + import + script + tessellation), seconds.

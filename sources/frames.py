@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pipeline.recipe import UpAxis
+from core.recipe import UpAxis
 
 if TYPE_CHECKING:  # trimesh is imported lazily
     import trimesh

@@ -35,8 +35,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pipeline.errors import SourceError
-from pipeline.recipe import MeshSource, PartsFrom, UpAxis
+from core.errors import SourceError
+from core.recipe import MeshSource, PartsFrom, UpAxis
 from sources.base import PartMeshes
 from sources.frames import transform_mesh
 

@@ -55,8 +55,8 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from pipeline.errors import SourceError
-from pipeline.recipe import TextAlign, TextSource
+from core.errors import SourceError
+from core.recipe import TextAlign, TextSource
 from sources.base import PartMeshes
 
 if TYPE_CHECKING:

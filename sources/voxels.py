@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.errors import SourceError
-from pipeline.grid import EMPTY
-from pipeline.recipe import UpAxis, VoxelsSource
+from core.errors import SourceError
+from core.grid import EMPTY
+from core.recipe import UpAxis, VoxelsSource
 from sources.base import PartVoxels
 from sources.frames import up_axis_rotation
 from sources.mesh import sanitize_name, unique_name

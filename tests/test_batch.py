@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from pipeline.cli import app
+from cli.app import app
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -134,7 +134,7 @@ def test_fail_fast_stops_after_the_first_failure(batch, tmp_path):
 @pytest.mark.parametrize("sig, jobs", [(signal.SIGKILL, 1), (signal.SIGINT, 2)])
 def test_killed_build_resumes_with_only_the_missing_assets(batch, tmp_path, sig, jobs):
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "pipeline.cli", "build", str(batch), "-o", str(out), "--quiet", "--jobs", str(jobs)]
+    cmd = [sys.executable, "-m", "cli.app", "build", str(batch), "-o", str(out), "--quiet", "--jobs", str(jobs)]
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
     records = out / ".decollage"
@@ -182,7 +182,7 @@ def test_unreachable_cluster_fails_fast_and_clearly(batch, tmp_path):
 def test_default_detailizer_key_covers_the_shipped_weights(write_recipe, tmp_path, monkeypatch):
     """An asset that names no checkpoint is rebuilt when the shipped model's bytes change."""
     from pipeline.build import plan_build
-    from pipeline.recipe import load_recipe
+    from core.recipe import load_recipe
 
     weights = tmp_path / "things.pt"
     monkeypatch.setattr("model.infer.DEFAULT_CHECKPOINT", weights)

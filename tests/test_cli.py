@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from pipeline.cli import app
+from cli.app import app
 
 RUNNER = CliRunner()
 
@@ -175,7 +175,7 @@ def test_schema_command_prints_json_schema():
 
 def test_console_script_entry_point_reports_errors_without_traceback(write_recipe):
     recipe = write_recipe("- just a list")
-    proc = subprocess.run([sys.executable, "-m", "pipeline.cli", "validate", str(recipe)],
+    proc = subprocess.run([sys.executable, "-m", "cli.app", "validate", str(recipe)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and "recipe.yaml" in proc.stderr

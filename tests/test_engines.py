@@ -11,7 +11,7 @@ import pytest
 import trimesh
 from typer.testing import CliRunner
 
-from pipeline.cli import app
+from cli.app import app
 from pipeline.engines import _merge_boxes, lod_targets
 
 REPO = Path(__file__).resolve().parent.parent

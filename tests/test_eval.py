@@ -1,4 +1,4 @@
-"""The evaluation protocol (pipeline/eval_protocol.py) and ``decollage eval`` on a tiny protocol and style set."""
+"""The evaluation protocol (evaluation/protocol.py) and ``decollage eval`` on a tiny protocol and style set."""
 
 from __future__ import annotations
 
@@ -11,11 +11,17 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
-from model.cls_score import ClsConfig
-from pipeline.cli import app
-from pipeline.eval_protocol import (DEFAULT_PROTOCOL, ProtocolError, check_detailizer, load_protocol,
-                                    style_assignments, write_protocol)
-from pipeline.exemplars import THINGS, Exemplar, encode_set, load_set
+from evaluation.cls_score import ClsConfig
+from cli.app import app
+from evaluation.protocol import (
+    DEFAULT_PROTOCOL,
+    ProtocolError,
+    check_detailizer,
+    load_protocol,
+    style_assignments,
+    write_protocol,
+)
+from stylesets.format import THINGS, Exemplar, encode_set, load_set
 
 RUNNER = CliRunner()
 R = 64  # tiny set resolution: 4³ coarse contents → 64³ outputs
@@ -70,7 +76,7 @@ def tiny(tmp_path_factory) -> Path:
 @pytest.fixture
 def tiny_cls(monkeypatch):
     """Make the 'quick' Cls variant tiny (fast enough for a unit test)."""
-    from model import cls_score
+    from evaluation import cls_score
 
     small = ClsConfig("quick", n_views=4, test_views=1, steps=10, batch=8, width=2, crop=32, test_crops=2)
     monkeypatch.setitem(cls_score.CLS_VARIANTS, "quick", small)
@@ -93,7 +99,7 @@ def _tiny_checkpoint(path: Path, styles: tuple[str, ...]) -> Path:
 
 
 def test_shipped_protocol_is_20_contents_by_16_styles():
-    from sources.exemplars import builtin_set
+    from stylesets.registry import builtin_set
 
     p = load_protocol(DEFAULT_PROTOCOL)
     assert len(p.contents) == 20 and len(p.outputs) == 320
@@ -232,7 +238,7 @@ def test_eval_errors_are_one_line(tiny, tmp_path):
 
 
 def test_doc_sections_are_replaced_in_place(tmp_path):
-    from pipeline.benchmarking import write_doc_section
+    from evaluation.benchmarking import write_doc_section
 
     doc = tmp_path / "docs" / "benchmarks.md"
     doc.parent.mkdir()
@@ -246,9 +252,9 @@ def test_doc_sections_are_replaced_in_place(tmp_path):
 
 
 def test_bench_measures_in_a_child_and_formats(tmp_path):
-    from model.evaluate import machine_info
-    from pipeline.bench_cli import bench_markdown
-    from pipeline.benchmarking import measure_detailizer
+    from evaluation.evaluate import machine_info
+    from cli.bench import bench_markdown
+    from evaluation.benchmarking import measure_detailizer
 
     r = measure_detailizer("upsample", "cpu", repeats=1, threads=1)
     assert r["device"] == "cpu" and r["threads"] == 1 and 0 < r["median_s"] < 30 and r["peak_rss_gb"] > 0.05
@@ -301,10 +307,10 @@ def test_ablation_presets_change_one_thing_each(tmp_path):
 
 def test_a_given_style_dictionary_gives_the_same_figures(tiny):
     """evaluate(dictionary=...) (one dictionary for several detailizers) scores as if it built its own."""
-    from model.evaluate import evaluate
-    from model.metrics import style_patch_dictionary
-    from pipeline.detailize import get_detailizer
-    from pipeline.eval_protocol import resolve_protocol_set
+    from evaluation.evaluate import evaluate
+    from evaluation.patch_index import style_patch_dictionary
+    from core.detailizer import get_detailizer
+    from evaluation.protocol import resolve_protocol_set
 
     protocol = load_protocol(tiny)
     sset = resolve_protocol_set(protocol)
@@ -318,7 +324,7 @@ def test_a_given_style_dictionary_gives_the_same_figures(tiny):
 
 
 def test_markdown_names_the_ablation_a_checkpoint_was_trained_as():
-    from model.evaluate import markdown
+    from evaluation.evaluate import markdown
 
     def report(training):
         return {"detailizer": {"name": "decollage", "checkpoint": "/x/row.pt", "training": training},

@@ -11,7 +11,7 @@ import trimesh
 from PIL import Image
 from typer.testing import CliRunner
 
-from pipeline.cli import app
+from cli.app import app
 
 RECIPES = Path(__file__).resolve().parent.parent / "recipes"
 

@@ -17,11 +17,22 @@ import pytest
 import trimesh
 from typer.testing import CliRunner
 
-import pipeline.exemplars as exemplars
-from pipeline.exemplars import (FURNITURE, THINGS, ExemplarError, ExemplarSpec, build_set, encode_set,
-                                fit_voxels, load_set, make_exemplar, read_meta, vocabulary_from_arg)
-from pipeline.user_exemplars import folder_specs, import_folder, part_for
-from sources.exemplars.prims import box, rod
+import stylesets.format as exemplars
+from stylesets.format import (
+    FURNITURE,
+    THINGS,
+    ExemplarError,
+    ExemplarSpec,
+    build_set,
+    encode_set,
+    fit_voxels,
+    load_set,
+    make_exemplar,
+    read_meta,
+    vocabulary_from_arg,
+)
+from stylesets.user_import import folder_specs, import_folder, part_for
+from stylesets.catalogues.prims import box, rod
 
 R = 32
 T = trimesh.transformations.translation_matrix
@@ -220,7 +231,7 @@ def test_part_names_with_numeric_suffixes_and_custom_vocabularies():
 
 
 def test_procedural_chairs_at_64():
-    from sources.exemplars import builtin_set
+    from stylesets.registry import builtin_set
 
     vocab, specs = builtin_set("furniture")
     by_name = {s.name: s for s in specs}
@@ -400,7 +411,7 @@ RUNNER = CliRunner()
 
 
 def _cli(args, styles_dir: Path):
-    from pipeline.cli import app
+    from cli.app import app
 
     result = RUNNER.invoke(app, ["styles", *map(str, args)], env={"DECOLLAGE_STYLES_DIR": str(styles_dir)})
     return result.exit_code, result.stdout, result.stderr
@@ -444,7 +455,7 @@ def test_cli_import_show_list(user_folder, tmp_path):
 
 def test_cli_build_a_builtin_set(monkeypatch, tmp_path):
     """``styles build`` on a small stand-in for a built-in set, voxelized at 32³ instead of 256³."""
-    from sources import exemplars as builtin
+    from stylesets import registry as builtin
 
     monkeypatch.setitem(builtin.BUILTIN_SETS, "stools", (FURNITURE, _stool_specs))
     monkeypatch.setattr(exemplars, "build_set", partial(build_set, resolution=R))

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from pipeline.exemplars import THINGS, ExemplarError, ExemplarSpec, make_exemplar
-from sources.exemplars import BUILTIN_SETS
-from sources.exemplars import monastery as mon
-from sources.exemplars.monastery import Building
+from stylesets.format import THINGS, ExemplarError, ExemplarSpec, make_exemplar
+from stylesets.registry import BUILTIN_SETS
+from stylesets.readers import monastery as mon
+from stylesets.readers.monastery import Building
 
 R = 64
 
@@ -225,7 +225,7 @@ def test_missing_package_is_a_clear_error(no_pybullet):
 
 
 def test_cli_build_without_pybullet_exits_2(no_pybullet, tmp_path):
-    from pipeline.cli import app
+    from cli.app import app
 
     result = CliRunner().invoke(app, ["styles", "build", "monastery", "--jobs", "1"],
                                 env={"DECOLLAGE_STYLES_DIR": str(tmp_path)})

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from pipeline.exemplars import FURNITURE, ExemplarError, ExemplarSpec, inputs_hash, make_exemplar
-from sources.exemplars import BUILTIN_SETS
-from sources.exemplars import sweethome as sh
-from sources.exemplars.sweethome import Model, Rule
+from stylesets.format import FURNITURE, ExemplarError, ExemplarSpec, inputs_hash, make_exemplar
+from stylesets.registry import BUILTIN_SETS
+from stylesets.readers import sweethome as sh
+from stylesets.readers.sweethome import Model, Rule
 
 R = 64
 CATALOGUE = "Fixture-CC-BY"
@@ -186,7 +186,7 @@ def test_missing_package_is_an_error_with_the_install_hint(tmp_path, monkeypatch
 
 
 def test_cli_build_without_the_package_exits_2(tmp_path, monkeypatch):
-    from pipeline.cli import app
+    from cli.app import app
 
     monkeypatch.setattr(sh, "FURNITURE_DIR", tmp_path / "nothing")
     out = tmp_path / "styles"

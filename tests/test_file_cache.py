@@ -1,10 +1,10 @@
-"""sources.exemplars.file_cache: one read per file version."""
+"""stylesets.readers.file_cache: one read per file version."""
 
 import os
 
 import pytest
 
-from sources.exemplars.file_cache import cached_per_file
+from stylesets.readers.file_cache import cached_per_file
 
 
 def test_reads_once_per_file_version_and_again_after_a_change(tmp_path):

@@ -17,21 +17,15 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
+from core import files as files_mod
 from pipeline import export as export_mod
-from pipeline.errors import ExportError, MeshingError
-from pipeline.export import (
-    apply_pivot,
-    ensure_writable_dir,
-    export_asset,
-    export_mesh,
-    mesh_stats,
-    pivot_translation,
-    write_bytes_atomic,
-)
-from pipeline.grid import FineGrid
+from core.errors import ExportError, MeshingError
+from pipeline.export import apply_pivot, export_asset, export_mesh, mesh_stats, pivot_translation
+from core.files import ensure_writable_dir, write_bytes_atomic
+from core.grid import FineGrid
 from pipeline.mesh import MeshSettings, drop_coincident_faces, mesh_fine_grid, signed_volume
 from pipeline.palette import NEUTRAL_RGBA, PALETTE, palette_rgba, style_color
-from pipeline.recipe import ExportFormat, ExportSettings, Pivot
+from core.recipe import ExportFormat, ExportSettings, Pivot
 
 VOXEL = 0.01
 ORIGIN = (-0.3, 0.1, 0.2)
@@ -331,11 +325,11 @@ def test_write_failure_and_commit_failure_leave_no_files(tmp_path, coloured_mesh
             raise OSError(errno.ENOSPC, "No space left on device")
         real_fsync(fd)
 
-    monkeypatch.setattr(export_mod.os, "fsync", fsync_fails_second)
+    monkeypatch.setattr(files_mod.os, "fsync", fsync_fails_second)
     with pytest.raises(ExportError, match="No space left"):
         export_mesh(coloured_mesh, tmp_path, "crate", [ExportFormat.GLB, ExportFormat.PLY], Pivot.SOURCE)
     assert os.listdir(tmp_path) == ["crate.glb"] and old.read_bytes() == b"previous export"
-    monkeypatch.setattr(export_mod.os, "fsync", real_fsync)
+    monkeypatch.setattr(files_mod.os, "fsync", real_fsync)
 
     def replace_fails_second(src, dst):
         calls["replace"] += 1
@@ -343,7 +337,7 @@ def test_write_failure_and_commit_failure_leave_no_files(tmp_path, coloured_mesh
             raise OSError(errno.EIO, "Input/output error")
         real_replace(src, dst)
 
-    monkeypatch.setattr(export_mod.os, "replace", replace_fails_second)
+    monkeypatch.setattr(files_mod.os, "replace", replace_fails_second)
     with pytest.raises(ExportError, match="Input/output error") as info:
         export_mesh(coloured_mesh, tmp_path, "crate", [ExportFormat.STL, ExportFormat.PLY], Pivot.SOURCE)
     assert info.value.file == str(tmp_path / "crate.ply")
@@ -362,9 +356,9 @@ def test_export_asset_writes_meshes_and_preview_together(tmp_path, coloured_mesh
     def broken_preview(mesh, size_px):
         raise MemoryError("out of memory while rendering")
 
-    import pipeline.preview
+    import geometry.preview
 
-    monkeypatch.setattr(pipeline.preview, "preview_png", broken_preview)
+    monkeypatch.setattr(geometry.preview, "preview_png", broken_preview)
     with pytest.raises(ExportError, match="could not encode PNG"):
         export_asset(coloured_mesh, tmp_path / "again", "crate", [ExportFormat.GLB], Pivot.SOURCE, preview_size_px=64)
     assert os.listdir(tmp_path / "again") == []

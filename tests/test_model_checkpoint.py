@@ -12,7 +12,7 @@ import torch
 from model.checkpoint import FORMAT_NAME, FORMAT_VERSION, Checkpoint, load_checkpoint, save_checkpoint
 from model.config import ModelConfig
 from model.networks import Generator, build_discriminators
-from pipeline.errors import DetailizeError
+from core.errors import DetailizeError
 
 
 def _tiny_cfg() -> ModelConfig:

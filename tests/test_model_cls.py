@@ -1,4 +1,4 @@
-"""Tests of the Cls-score: the fast depth-shaded renderer (model/render_eval.py) and the classifier (model/cls_score.py)."""
+"""Tests of the Cls-score: the fast depth-shaded renderer (evaluation/render_eval.py) and the classifier (evaluation/cls_score.py)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from model import render_eval as R
-from model.cls_score import ClsConfig, ViewBank, cls_score, render_bank, split_views
+from evaluation import render_eval as R
+from evaluation.cls_score import ClsConfig, ViewBank, cls_score, render_bank, split_views
 
 
 @pytest.fixture(autouse=True)

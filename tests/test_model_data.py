@@ -22,8 +22,8 @@ from model.data import (
     smooth_target,
     style_sample,
 )
-from pipeline.errors import DetailizeError
-from pipeline.grid import EMPTY
+from core.errors import DetailizeError
+from core.grid import EMPTY
 
 PARTS = ("bottom", "top")
 AUG = AugmentConfig(resolution=64)

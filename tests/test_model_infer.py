@@ -11,9 +11,9 @@ from model.config import ModelConfig
 from model.masks import fill_nearest
 from model.infer import DEFAULT_CHECKPOINT, DecollageDetailizer, resolve_device
 from model.networks import Generator
-from pipeline import detailize as pipeline_detailize
-from pipeline.errors import DetailizeError
-from pipeline.grid import EMPTY, LabeledGrid
+from core import detailizer as pipeline_detailize
+from core.errors import DetailizeError
+from core.grid import EMPTY, LabeledGrid
 
 STYLES = ("tower", "tree", "cake")
 PARTS = ("body", "roof")

@@ -20,7 +20,7 @@ from model.losses import (
     up_loss,
 )
 from model.masks import DOutputMasks, StyledCoarse, align_to_d_output
-from pipeline.errors import DetailizeError
+from core.errors import DetailizeError
 
 
 def test_reconstruction_constant_error_gives_beta_e_squared_per_level():

@@ -20,8 +20,8 @@ from model.masks import (
     joint_mask,
 )
 from model.networks import build_discriminators
-from pipeline.errors import DetailizeError
-from pipeline.grid import EMPTY
+from core.errors import DetailizeError
+from core.grid import EMPTY
 
 
 def test_coarse_part_labels_majority_and_nearest_fill():

@@ -1,4 +1,4 @@
-"""Tests of model/metrics.py on hand-made grids with known answers."""
+"""Tests of the structure and LP metrics (core/structure.py, evaluation/patches.py, patch_index.py, lp.py) on hand-made grids with known answers."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from model import metrics as M
+from core import structure
+from evaluation import lp, patch_index, patches
 
 
 def _up(coarse: np.ndarray, factor: int) -> np.ndarray:
@@ -27,14 +28,14 @@ def _cube_coarse() -> np.ndarray:
 def test_iou_identical_is_one():
     rng = np.random.default_rng(3)
     c = rng.random((4, 5, 3)) > 0.5
-    assert M.strict_loose_iou(_up(c, 2), c, factor=2) == (1.0, 1.0)
-    assert M.strict_loose_iou(_up(c, 16), c) == (1.0, 1.0)  # default factor 16
+    assert structure.strict_loose_iou(_up(c, 2), c, factor=2) == (1.0, 1.0)
+    assert structure.strict_loose_iou(_up(c, 16), c) == (1.0, 1.0)  # default factor 16
 
 
 def test_iou_shift_by_one_fine_voxel():
     c = _cube_coarse()
     out = np.roll(_up(c, 2), 1, axis=0)  # fine x [2,6) → [3,7): touches coarse cells 1, 2, 3
-    strict, loose = M.strict_loose_iou(out, c, factor=2)
+    strict, loose = structure.strict_loose_iou(out, c, factor=2)
     assert strict == pytest.approx(8 / 12) and loose == 1.0
 
 
@@ -42,11 +43,11 @@ def test_strict_vs_loose_over_and_under_coverage():
     c = _cube_coarse()
     extra = np.zeros_like(c)
     extra[3, 0, :] = True  # 4 cells outside C
-    strict, loose = M.strict_loose_iou(_up(c | extra, 2), c, factor=2)
+    strict, loose = structure.strict_loose_iou(_up(c | extra, 2), c, factor=2)
     assert loose == 1.0 and strict == pytest.approx(8 / 12)
     half = c.copy()
     half[1] = False  # output covers 4 of the 8 cells
-    strict, loose = M.strict_loose_iou(_up(half, 2), c, factor=2)
+    strict, loose = structure.strict_loose_iou(_up(half, 2), c, factor=2)
     assert strict == pytest.approx(0.5) and loose == pytest.approx(0.5)
 
 
@@ -54,29 +55,29 @@ def test_iou_one_fine_voxel_per_cell_is_enough():
     c = _cube_coarse()
     out = np.zeros((8, 8, 8), bool)
     out[2::2, 2::2, 2::2][:2, :2, :2] = True  # one voxel in each cell of C
-    assert M.strict_loose_iou(out, c, factor=2) == (1.0, 1.0)
+    assert structure.strict_loose_iou(out, c, factor=2) == (1.0, 1.0)
 
 
 def test_iou_empty_cases():
     c = _cube_coarse()
     empty_out = np.zeros((8, 8, 8), bool)
-    assert M.strict_loose_iou(empty_out, c, factor=2) == (0.0, 0.0)
-    assert M.strict_loose_iou(empty_out, np.zeros_like(c), factor=2) == (1.0, 1.0)
-    assert M.strict_loose_iou(_up(c, 2), np.zeros_like(c), factor=2) == (0.0, 0.0)
+    assert structure.strict_loose_iou(empty_out, c, factor=2) == (0.0, 0.0)
+    assert structure.strict_loose_iou(empty_out, np.zeros_like(c), factor=2) == (1.0, 1.0)
+    assert structure.strict_loose_iou(_up(c, 2), np.zeros_like(c), factor=2) == (0.0, 0.0)
 
 
 def test_iou_binarises_floats_at_iso_level():
     c = _cube_coarse()
     out = _up(c, 2).astype(np.float32) * 0.41
     out[0, 0, 0] = 0.4  # exactly the iso level: empty (> 0.4 is occupied)
-    assert M.strict_loose_iou(out, c, factor=2) == (1.0, 1.0)
+    assert structure.strict_loose_iou(out, c, factor=2) == (1.0, 1.0)
 
 
 def test_iou_shape_mismatch_is_a_clear_error():
     with pytest.raises(ValueError, match="factor 2"):
-        M.strict_loose_iou(np.zeros((8, 8, 7), bool), _cube_coarse(), factor=2)
+        structure.strict_loose_iou(np.zeros((8, 8, 7), bool), _cube_coarse(), factor=2)
     with pytest.raises(ValueError, match="3-D"):
-        M.strict_loose_iou(np.zeros((8, 8), bool), _cube_coarse(), factor=2)
+        structure.strict_loose_iou(np.zeros((8, 8), bool), _cube_coarse(), factor=2)
 
 
 # --------------------------------------------------------------------------- patches
@@ -98,14 +99,14 @@ def test_candidates_match_brute_force():
     rng = np.random.default_rng(0)
     for shape in [(16, 14, 13), (12, 12, 12)]:
         x = rng.random(shape) > 0.7
-        np.testing.assert_array_equal(M.surface_candidates(x), _brute_candidates(x))
-    assert M.surface_candidates(np.ones((11, 20, 20), bool)).shape == (0, 3)
+        np.testing.assert_array_equal(patches.surface_candidates(x), _brute_candidates(x))
+    assert patches.surface_candidates(np.ones((11, 20, 20), bool)).shape == (0, 3)
 
 
 def test_surface_and_dilation_match_brute_force():
     rng = np.random.default_rng(1)
     x = rng.random((7, 6, 8)) > 0.3
-    surf, dil = (t.numpy() for t in M.surface_and_dilation(x))
+    surf, dil = (t.numpy() for t in patches.surface_and_dilation(x))
     want_s = np.zeros_like(x)
     for i, j, k in np.argwhere(x):
         box = x[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2, max(k - 1, 0) : k + 2]
@@ -116,20 +117,20 @@ def test_surface_and_dilation_match_brute_force():
     np.testing.assert_array_equal(surf, want_s)
     np.testing.assert_array_equal(dil, want_d)
     # a full grid has no surface: the border does not count as empty
-    assert not M.surface_and_dilation(np.ones((5, 5, 5), bool))[0].any()
+    assert not patches.surface_and_dilation(np.ones((5, 5, 5), bool))[0].any()
 
 
 def test_extract_patches_and_sampling():
     rng = np.random.default_rng(2)
     x = rng.random((20, 18, 19)) > 0.6
-    pos = M.sample_surface_patches(x, n=7, seed=11)
+    pos = patches.sample_surface_patches(x, n=7, seed=11)
     assert pos.shape == (7, 3)
-    np.testing.assert_array_equal(pos, M.sample_surface_patches(x, n=7, seed=11))
+    np.testing.assert_array_equal(pos, patches.sample_surface_patches(x, n=7, seed=11))
     assert len({tuple(p) for p in pos}) == 7
-    allpos = {tuple(p) for p in M.surface_candidates(x)}
+    allpos = {tuple(p) for p in patches.surface_candidates(x)}
     assert {tuple(p) for p in pos} <= allpos
-    assert len(M.sample_surface_patches(x, n=10**6, seed=0)) == len(allpos)  # fewer: take all
-    rows = M.extract_patches(x, pos).numpy()
+    assert len(patches.sample_surface_patches(x, n=10**6, seed=0)) == len(allpos)  # fewer: take all
+    rows = patches.extract_patches(x, pos).numpy()
     for r, (i, j, k) in zip(rows, pos):
         np.testing.assert_array_equal(r.reshape(12, 12, 12), x[i - 5 : i + 7, j - 5 : j + 7, k - 5 : k + 7])
 
@@ -146,15 +147,15 @@ def _two_boxes() -> np.ndarray:
 
 def test_lp_identical_shape_is_one():
     x = _two_boxes()
-    d = M.style_patch_dictionary([x])
-    assert M.lp_scores(x, d, n=200, seed=0) == (1.0, 1.0)
+    d = patch_index.style_patch_dictionary([x])
+    assert lp.lp_scores(x, d, n=200, seed=0) == (1.0, 1.0)
 
 
 def test_lp_translated_copy_is_one():
     x = _two_boxes()
-    d = M.style_patch_dictionary([np.zeros((24, 24, 24), bool), x])  # an empty style adds nothing
+    d = patch_index.style_patch_dictionary([np.zeros((24, 24, 24), bool), x])  # an empty style adds nothing
     moved = np.roll(np.roll(x, 2, axis=0), -1, axis=2)  # stays clear of the borders
-    assert M.lp_scores(moved, d, n=1000, seed=5) == (1.0, 1.0)
+    assert lp.lp_scores(moved, d, n=1000, seed=5) == (1.0, 1.0)
 
 
 def test_lp_one_voxel_step_hand_computed():
@@ -169,26 +170,26 @@ def test_lp_one_voxel_step_hand_computed():
     style[:, :, :12] = True
     out = style.copy()
     out[12:, :, 12] = True
-    d = M.style_patch_dictionary([style])
+    d = patch_index.style_patch_dictionary([style])
     assert len(d.occ_count) == 1  # every surface patch of a slab is the same
-    assert len(M.surface_candidates(out)) == 14 * 13
-    lp_iou, lp_f = M.lp_scores(out, d, n=1000, seed=0)
+    assert len(patches.surface_candidates(out)) == 14 * 13
+    lp_iou, lp_f = lp.lp_scores(out, d, n=1000, seed=0)
     assert lp_iou == pytest.approx(8 / 14)
     assert lp_f == 1.0
 
 
 def test_lp_empty_output_and_empty_dictionary():
-    d = M.style_patch_dictionary([_two_boxes()])
-    assert M.lp_scores(np.zeros((30, 30, 30), bool), d) == (0.0, 0.0)
-    empty = M.style_patch_dictionary([np.zeros((20, 20, 20), bool)])
+    d = patch_index.style_patch_dictionary([_two_boxes()])
+    assert lp.lp_scores(np.zeros((30, 30, 30), bool), d) == (0.0, 0.0)
+    empty = patch_index.style_patch_dictionary([np.zeros((20, 20, 20), bool)])
     assert len(empty.occ_count) == 0
-    assert M.lp_scores(_two_boxes(), empty) == (0.0, 0.0)
+    assert lp.lp_scores(_two_boxes(), empty) == (0.0, 0.0)
 
 
 def test_dictionary_deduplicates_across_shapes():
     x = _two_boxes()
-    once = M.style_patch_dictionary([x])
-    twice = M.style_patch_dictionary([x, np.roll(x, 1, axis=1)])
+    once = patch_index.style_patch_dictionary([x])
+    twice = patch_index.style_patch_dictionary([x, np.roll(x, 1, axis=1)])
     assert len(twice.occ_count) == len(once.occ_count)
     assert len(twice.surf_count) == len(once.surf_count)
     assert np.all(np.diff(once.occ_count) >= 0) and np.all(np.diff(once.surf_count) >= 0)
@@ -231,12 +232,12 @@ def _flip(rng, rows: np.ndarray, lo: int, hi: int) -> np.ndarray:
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_pruned_search_equals_brute_force(seed, monkeypatch):
     # tiny blocks and chunks so that windows, outward chunk order and early exits are all exercised
-    monkeypatch.setattr(M, "_DICT_CHUNK", 16)
-    monkeypatch.setattr(M, "_QUERY_BLOCK", 8)
-    monkeypatch.setattr(M, "_TOP_K", 1)
-    monkeypatch.setattr(M, "_KNN", 1)
-    monkeypatch.setattr(M, "_PAIR_CHUNK", 7)
-    monkeypatch.setattr(M, "_BALL_BLOCK", 5)
+    monkeypatch.setattr(patch_index, "_DICT_CHUNK", 16)
+    monkeypatch.setattr(patch_index, "_QUERY_BLOCK", 8)
+    monkeypatch.setattr(patch_index, "_TOP_K", 1)
+    monkeypatch.setattr(patch_index, "_KNN", 1)
+    monkeypatch.setattr(patch_index, "_PAIR_CHUNK", 7)
+    monkeypatch.setattr(patch_index, "_BALL_BLOCK", 5)
     rng = np.random.default_rng(seed)
     n_q = 30
     density = rng.uniform(0.2, 0.7, size=(n_q, 1))
@@ -250,13 +251,13 @@ def test_pruned_search_equals_brute_force(seed, monkeypatch):
     ds[-1] = False  # an empty style surface: NaN recall
     dd = np.concatenate([_flip(rng, qd, 0, 40), _flip(rng, qd, 0, 80), rng.random((30, 1728)) < 0.3])
     # occupancy rows and (surface, dilation) rows are independent tables of the dictionary
-    d_occ = M.dictionary_from_patches(dic, np.zeros_like(dic), np.zeros_like(dic))
-    d = M.dictionary_from_patches(np.zeros_like(ds), ds, dd)
-    got_iou = M.iou_similar(torch.from_numpy(q.astype(np.int8)), d_occ)
+    d_occ = patch_index.dictionary_from_patches(dic, np.zeros_like(dic), np.zeros_like(dic))
+    d = patch_index.dictionary_from_patches(np.zeros_like(ds), ds, dd)
+    got_iou = patch_index.iou_similar(torch.from_numpy(q.astype(np.int8)), d_occ)
     want_iou = _brute_iou(q, dic)
     np.testing.assert_array_equal(got_iou, want_iou)
     assert 0 < want_iou.sum() < n_q  # the case is not trivial
-    got_f = M.f_similar(torch.from_numpy(qs.astype(np.int8)), torch.from_numpy(qd.astype(np.int8)), d)
+    got_f = patch_index.f_similar(torch.from_numpy(qs.astype(np.int8)), torch.from_numpy(qd.astype(np.int8)), d)
     want_f = _brute_f(qs, qd, ds, dd)
     np.testing.assert_array_equal(got_f, want_f)
     assert 0 < want_f.sum() < n_q
@@ -265,24 +266,24 @@ def test_pruned_search_equals_brute_force(seed, monkeypatch):
 
 def test_lp_is_seeded():
     x = _two_boxes()
-    d = M.style_patch_dictionary([np.roll(x, 3, axis=1)[:, :, ::-1]])
-    a = M.lp_scores(x, d, n=50, seed=4)
-    assert a == M.lp_scores(x, d, n=50, seed=4)
+    d = patch_index.style_patch_dictionary([np.roll(x, 3, axis=1)[:, :, ::-1]])
+    a = lp.lp_scores(x, d, n=50, seed=4)
+    assert a == lp.lp_scores(x, d, n=50, seed=4)
     assert 0.0 <= a[0] <= 1.0 and 0.0 <= a[1] <= 1.0
 
 
 def test_packed_extraction_and_cell_counts_match_the_dense_path():
     rng = np.random.default_rng(11)
     vol = rng.random((20, 18, 23)) > 0.5
-    pos = M.surface_candidates(vol)
-    dense = M.extract_patches(vol, pos)
-    packed = M.extract_packed(M._z_words(vol), pos)
-    np.testing.assert_array_equal(packed, M._pack(dense))
-    np.testing.assert_array_equal(M._bytes_to_words(packed), M._bytes_to_words(M._words_to_bytes(
-        M._bytes_to_words(packed))))
-    counts, _ = M.cell_signatures(dense)
-    np.testing.assert_array_equal(M.packed_cell_counts(packed), counts.numpy())
-    np.testing.assert_array_equal(M._octants_from_cells(M.packed_cell_counts(packed)), M._octants(dense))
+    pos = patches.surface_candidates(vol)
+    dense = patches.extract_patches(vol, pos)
+    packed = patch_index.extract_packed(patch_index._z_words(vol), pos)
+    np.testing.assert_array_equal(packed, patch_index._pack(dense))
+    np.testing.assert_array_equal(patch_index._bytes_to_words(packed), patch_index._bytes_to_words(patch_index._words_to_bytes(
+        patch_index._bytes_to_words(packed))))
+    counts, _ = patch_index.cell_signatures(dense)
+    np.testing.assert_array_equal(patch_index.packed_cell_counts(packed), counts.numpy())
+    np.testing.assert_array_equal(patch_index._octants_from_cells(patch_index.packed_cell_counts(packed)), patch_index._octants(dense))
 
 
 def test_unique_rows_survive_hash_collisions():
@@ -290,7 +291,7 @@ def test_unique_rows_survive_hash_collisions():
     b = np.zeros(216, np.uint8)
     a[7] = 0x80  # top bit of 64-bit word 0
     b[15] = 0x80  # top bit of word 1: the same linear hash (2^63 · odd = 2^63 mod 2^64)
-    assert M._row_hash(a[None])[0] == M._row_hash(b[None])[0]
+    assert patch_index._row_hash(a[None])[0] == patch_index._row_hash(b[None])[0]
     c = np.full(216, 3, np.uint8)
-    got = M._unique_packed([np.stack([a, a, c]), np.stack([b, b, a, c])], 216)
+    got = patch_index._unique_packed([np.stack([a, a, c]), np.stack([b, b, a, c])], 216)
     np.testing.assert_array_equal(got, np.stack([a, c, b]))

@@ -20,7 +20,7 @@ from model.networks import (
     receptive_field,
     voxel_shuffle,
 )
-from pipeline.errors import DetailizeError
+from core.errors import DetailizeError
 
 
 def _inputs(gen: Generator, shape, seed=0, batch=1):

@@ -18,8 +18,8 @@ from model.losses import down_loss, structure_losses, up_loss
 from model.networks import Generator, build_discriminators, count_params
 from model.train import TrainConfig, Trainer, train
 from model.windows import blockwise_forward, window_forward
-from pipeline.errors import DetailizeError
-from pipeline.grid import EMPTY, LabeledGrid
+from core.errors import DetailizeError
+from core.grid import EMPTY, LabeledGrid
 from tests.test_model_train import EXS, PARTS, R
 
 

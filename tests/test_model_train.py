@@ -15,8 +15,8 @@ from model.data import Exemplar
 from model.infer import DecollageDetailizer
 from model.networks import Generator
 from model.train import TrainConfig, train
-from pipeline.errors import DetailizeError
-from pipeline.grid import EMPTY, LabeledGrid
+from core.errors import DetailizeError
+from core.grid import EMPTY, LabeledGrid
 
 R = 64
 PARTS = ("bottom", "top")

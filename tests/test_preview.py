@@ -1,4 +1,4 @@
-"""Preview renderer (pipeline/preview.py): size, content, determinism, orientation."""
+"""Preview renderer (geometry/preview.py): size, content, determinism, orientation."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 import trimesh
 from PIL import Image
 
-from pipeline import preview
-from pipeline.preview import render_preview, save_preview
+from geometry import preview
+from geometry.preview import render_preview, save_preview
 
 RED = (220, 30, 30, 255)
 BLUE = (30, 60, 220, 255)

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.errors import RecipeError
-from pipeline.recipe import ExportFormat, FitMode, json_schema, load_recipe, parse_recipe
+from core.errors import RecipeError
+from core.recipe import ExportFormat, FitMode, json_schema, load_recipe, parse_recipe
 
 GOOD = """
 version: 1

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from model.upsample import UpsampleDetailizer, nearest_upsample
-from pipeline.errors import RecipeError
-from pipeline.grid import EMPTY, ISO_LEVEL, LabeledGrid
-from pipeline.recipe import RegionRule
+from core.errors import RecipeError
+from core.grid import EMPTY, ISO_LEVEL, LabeledGrid
+from core.recipe import RegionRule
 from pipeline.regions import apply_regions
-from pipeline.voxelize import PartGrid
+from geometry.voxelize import PartGrid
 
 
 def _tower() -> PartGrid:

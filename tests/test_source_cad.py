@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.errors import SourceError
-from pipeline.recipe import CadSource
+from core.errors import SourceError
+from core.recipe import CadSource
 from sources import cad, cad_script
 from sources.frames import transform_points, up_axis_rotation
 

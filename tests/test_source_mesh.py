@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from pipeline.errors import SourceError
-from pipeline.recipe import MeshSource
+from core.errors import SourceError
+from core.recipe import MeshSource
 from sources.mesh import load, sanitize_name, unique_name
 
 

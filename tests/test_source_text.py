@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.errors import SourceError
-from pipeline.recipe import NAME_PATTERN, TextSource
+from core.errors import SourceError
+from core.recipe import NAME_PATTERN, TextSource
 from sources import text as text_source
 from sources.text import DEFAULT_FONT, load
 
@@ -425,8 +425,8 @@ def test_text_without_visible_glyphs_is_refused():
 
 def test_capitals_get_the_same_voxel_size_whatever_the_string():
     """fit: height uses the cap height, so accents, descenders and extra lines do not shrink the letters."""
-    from pipeline.recipe import FitMode, GridSettings
-    from pipeline.voxelize import voxelize
+    from core.recipe import FitMode, GridSettings
+    from geometry.voxelize import voxelize
 
     grids = {}
     for text in ("HELL", "Ünïcødé gypsy", "TWO\nLINES"):

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.errors import SourceError
-from pipeline.grid import EMPTY
-from pipeline.recipe import UpAxis, VoxelsSource
+from core.errors import SourceError
+from core.grid import EMPTY
+from core.recipe import UpAxis, VoxelsSource
 from sources.frames import transform_points
 from sources.voxels import load, rotate_grid
 

@@ -8,9 +8,9 @@ from functools import partial
 from typer.testing import CliRunner
 
 from model.checkpoint import load_checkpoint
-from pipeline.cli import app
-from pipeline.exemplars import THINGS, ExemplarSpec, build_set
-from sources.exemplars.prims import box, rod
+from cli.app import app
+from stylesets.format import THINGS, ExemplarSpec, build_set
+from stylesets.catalogues.prims import box, rod
 
 R = 64
 

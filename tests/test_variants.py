@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.errors import RecipeError
-from pipeline.recipe import parse_recipe
+from core.errors import RecipeError
+from core.recipe import parse_recipe
 
 MATRIX = """
 version: 1

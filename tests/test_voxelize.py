@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from pipeline.errors import VoxelizeError
-from pipeline.grid import EMPTY
-from pipeline.recipe import FitMode, GridSettings
-from pipeline.voxelize import PartGrid, solid_occupancy, voxelize
+from core.errors import VoxelizeError
+from core.grid import EMPTY
+from core.recipe import FitMode, GridSettings
+from geometry.voxelize import PartGrid, solid_occupancy, voxelize
 from sources.base import PartMeshes, PartVoxels
 
 

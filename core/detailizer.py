@@ -1,0 +1,78 @@
+"""The detailize stage: one interface, a registry of detailizers by name.
+
+A detailizer turns a coarse ``LabeledGrid`` (X, Y, Z) into a ``FineGrid``
+(16X, 16Y, 16Z) occupancy with a style per fine voxel. Implementations live in
+``model/``; the pipeline only knows this protocol. ``style_names`` /
+``part_names`` are the vocabularies a detailizer understands; ``None`` means
+it accepts any name (the non-learned baseline, whose styles only colour regions).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Protocol
+
+from core.errors import DetailizeError
+from core.grid import FineGrid, LabeledGrid
+
+
+class Detailizer(Protocol):
+    name: str
+    learned: bool
+    style_names: tuple[str, ...] | None
+    part_names: tuple[str, ...] | None
+
+    def detailize(self, grid: LabeledGrid, seed: int = 0) -> FineGrid: ...
+
+    def describe(self) -> dict: ...
+
+
+#: name → "module:factory". Factories take (checkpoint path or None, device) and return a Detailizer.
+REGISTRY: dict[str, str] = {
+    "upsample": "model.upsample:UpsampleDetailizer",
+    "decollage": "model.infer:DecollageDetailizer",
+}
+
+#: name → "module:ATTRIBUTE" of the checkpoint file a learned detailizer loads when a recipe names none
+#: (the model shipped in the repo).
+DEFAULT_CHECKPOINTS: dict[str, str] = {
+    "decollage": "model.infer:DEFAULT_CHECKPOINT",
+}
+
+#: The detailizer of an asset whose recipe names none: the shipped learned model.
+DEFAULT_DETAILIZER = "decollage"
+
+_CACHE: dict[tuple, Detailizer] = {}
+
+
+def known_detailizers() -> list[str]:
+    return sorted(REGISTRY)
+
+
+def effective_checkpoint(name: str, checkpoint: str | None) -> str | None:
+    """The checkpoint file detailizer ``name`` will load: ``checkpoint`` if given, else its shipped default.
+
+    None for detailizers without weights (``upsample``). Used for cache keys, so that
+    replacing the shipped weights rebuilds every asset made with them.
+    """
+    if checkpoint is not None or name not in DEFAULT_CHECKPOINTS:
+        return checkpoint
+    module_name, attr = DEFAULT_CHECKPOINTS[name].split(":")
+    return str(getattr(importlib.import_module(module_name), attr))
+
+
+def get_detailizer(name: str, checkpoint: str | None = None, device: str = "auto") -> Detailizer:
+    """The detailizer registered as ``name``, loaded once per (name, checkpoint, device)."""
+    if name not in REGISTRY:
+        raise DetailizeError(f"unknown detailizer {name!r} (known: {', '.join(known_detailizers())})")
+    key = (name, checkpoint, device)
+    if key not in _CACHE:
+        module_name, factory_name = REGISTRY[name].split(":")
+        factory = getattr(importlib.import_module(module_name), factory_name)
+        if name == "upsample":
+            if checkpoint is not None:
+                raise DetailizeError("the 'upsample' baseline takes no checkpoint", hint="remove 'checkpoint'")
+            _CACHE[key] = factory()
+        else:
+            _CACHE[key] = factory(checkpoint=checkpoint, device=device)
+    return _CACHE[key]

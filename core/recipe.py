@@ -1,0 +1,678 @@
+"""Recipe schema (version 1): typed, strict, validated; every user-facing setting lives here.
+
+A recipe is YAML::
+
+    version: 1
+    defaults: {grid: {...}, detailize: {...}, export: {...}}   # optional
+    assets:
+      - name: hello
+        source: {kind: text, text: HELLO}
+        regions:
+          - {parts: ["glyph_*"], part: body, style: brick}
+          - {band: top, part: roof, style: tiles}
+
+Loading uses ``yaml.SafeLoader`` (plus a duplicate-key check), then strict
+JSON-mode validation: unknown keys are errors, strings are never coerced to
+numbers, lists are accepted where tuples are meant. Any problem raises
+``RecipeError`` naming the file and the field path.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from enum import Enum
+from pathlib import Path
+from typing import Annotated, Any, Literal, Optional, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
+
+from core.detailizer import DEFAULT_DETAILIZER
+from core.errors import RecipeError
+
+SCHEMA_VERSION = 1
+
+PositiveFloat = Annotated[float, Field(gt=0)]
+NonNegativeFloat = Annotated[float, Field(ge=0)]
+Vec3 = tuple[float, float, float]
+PositiveVec3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
+Vec2 = tuple[float, float]
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$"
+#: Value of a region's part/style meaning "keep what the source says".
+FROM_SOURCE = "@source"
+LABEL_PATTERN = r"^(@source|[A-Za-z0-9][A-Za-z0-9_.\-]*)$"
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, use_enum_values=False)
+
+
+# --------------------------------------------------------------------------- enums
+
+
+class UpAxis(str, Enum):
+    """Which axis of the *input* points up; it is rotated onto +Y."""
+
+    X = "x"
+    Y = "y"
+    Z = "z"
+    NEG_X = "-x"
+    NEG_Y = "-y"
+    NEG_Z = "-z"
+
+
+class LengthUnit(str, Enum):
+    """Unit of the numbers in a source; converted to metres."""
+
+    M = "m"
+    CM = "cm"
+    MM = "mm"
+    INCH = "in"
+
+    @property
+    def metres(self) -> float:
+        return {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}[self.value]
+
+
+class TextAlign(str, Enum):
+    LEFT = "left"
+    CENTER = "center"
+    RIGHT = "right"
+
+
+class FitMode(str, Enum):
+    """How a source is scaled into the coarse grid.
+
+    longest: the longest side spans ``resolution`` voxels (the classic 16³ cube).
+    height: the Y extent spans ``resolution`` voxels; X and Z grow as needed
+        (default for text: each glyph gets about ``resolution`` voxels of height).
+    voxel_size: use ``voxel_size_m`` as given; the grid is as large as the shape.
+    """
+
+    LONGEST = "longest"
+    HEIGHT = "height"
+    VOXEL_SIZE = "voxel_size"
+
+
+class PartsFrom(str, Enum):
+    """Where a mesh file's parts come from."""
+
+    NODES = "nodes"  # scene nodes / OBJ objects and groups
+    WHOLE = "whole"  # the whole file is one part
+
+
+class ExportFormat(str, Enum):
+    GLB = "glb"
+    OBJ = "obj"
+    STL = "stl"
+    PLY = "ply"
+
+
+class EngineProfile(str, Enum):
+    """Node naming, LOD/collision layout and axes for a game engine (pipeline/engines.py)."""
+
+    GENERIC = "generic"
+    UNITY = "unity"
+    UNREAL = "unreal"
+    GODOT = "godot"
+
+
+class CollisionKind(str, Enum):
+    NONE = "none"
+    HULL = "hull"  # convex hull of LOD0
+    BOXES = "boxes"  # boxes merged from the coarse grid's occupied cells
+
+
+class Pivot(str, Enum):
+    """Where the exported mesh's origin sits."""
+
+    BOTTOM_CENTER = "bottom_center"  # centre of the footprint, at the lowest point (game-engine friendly)
+    CENTER = "center"  # centre of the bounding box
+    SOURCE = "source"  # keep the source's own coordinates
+
+
+# --------------------------------------------------------------------------- sources
+
+
+class TextSource(_Strict):
+    """Extruded 3D text; one part per glyph named ``glyph_<index>_<char>``."""
+
+    kind: Literal["text"]
+    text: str = Field(description="The string; '\\n' starts a new line.")
+    font: Optional[str] = Field(None, description="TTF/OTF path, relative to the recipe; default: bundled DejaVu Sans Bold.")
+    size_m: PositiveFloat = Field(0.2, description="Font size (em height) in metres.")
+    depth_m: Optional[PositiveFloat] = Field(None, description="Extrusion depth in metres; default 0.3 × size_m.")
+    letter_spacing: float = Field(0.08, ge=-0.5, le=2.0, description="Extra space between glyphs, in em.")
+    line_spacing: float = Field(1.2, gt=0, le=5.0, description="Baseline-to-baseline distance, in em.")
+    align: TextAlign = TextAlign.CENTER
+    bevel_m: NonNegativeFloat = Field(0.0, description="Chamfer on the front edges, metres; 0 = none.")
+
+    @field_validator("text")
+    @classmethod
+    def _not_blank(cls, v: str) -> str:
+        if not v.strip():
+            raise ValueError("text is empty; give at least one visible character")
+        return v
+
+
+class _Placed(_Strict):
+    name: Optional[str] = Field(None, pattern=NAME_PATTERN, description="Part name (required on top-level parts).")
+    at: Vec3 = Field((0.0, 0.0, 0.0), description="Translation, in the source's units.")
+    rotate_deg: Vec3 = Field((0.0, 0.0, 0.0), description="Rotation about the fixed X, then Y, then Z axes, in degrees; applied before 'at'.")
+
+
+class BoxShape(_Placed):
+    """A box of ``size`` (x, y, z), centred at the origin before placement."""
+
+    shape: Literal["box"]
+    size: PositiveVec3
+
+
+class CylinderShape(_Placed):
+    """A cylinder along +Z standing on z = 0 (spans z ∈ [0, height]), centred on the Z axis."""
+
+    shape: Literal["cylinder"]
+    radius: PositiveFloat
+    height: PositiveFloat
+
+
+class SphereShape(_Placed):
+    """A sphere centred at the origin before placement."""
+
+    shape: Literal["sphere"]
+    radius: PositiveFloat
+
+
+class ConeShape(_Placed):
+    """A cone / frustum along +Z: ``radius_bottom`` at z = 0, ``radius_top`` at z = height."""
+
+    shape: Literal["cone"]
+    radius_bottom: NonNegativeFloat
+    radius_top: NonNegativeFloat = 0.0
+    height: PositiveFloat
+
+    @model_validator(mode="after")
+    def _one_radius(self) -> "ConeShape":
+        if self.radius_bottom == 0 and self.radius_top == 0:
+            raise ValueError("a cone needs radius_bottom > 0 or radius_top > 0")
+        return self
+
+
+class TorusShape(_Placed):
+    """A torus centred at the origin, its ring in the XY plane (axis +Z)."""
+
+    shape: Literal["torus"]
+    major_radius: PositiveFloat
+    minor_radius: PositiveFloat
+
+    @model_validator(mode="after")
+    def _radii(self) -> "TorusShape":
+        if self.minor_radius >= self.major_radius:
+            raise ValueError("minor_radius must be smaller than major_radius")
+        return self
+
+
+class ExtrudeShape(_Placed):
+    """A closed 2-D polygon in the XY plane (any winding), extruded from z = 0 to z = height (+Z, the CAD up axis by default)."""
+
+    shape: Literal["extrude"]
+    profile: list[Vec2] = Field(min_length=3)
+    height: PositiveFloat
+
+
+class BooleanShape(_Placed):
+    """union / difference (first child minus the rest) / intersection of children."""
+
+    shape: Literal["union", "difference", "intersection"]
+    children: list["ShapeNode"] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _arity(self) -> "BooleanShape":
+        if self.shape != "union" and len(self.children) < 2:
+            raise ValueError(f"'{self.shape}' needs at least two children")
+        return self
+
+
+ShapeNode = Annotated[
+    Union[BoxShape, CylinderShape, SphereShape, ConeShape, TorusShape, ExtrudeShape, BooleanShape],
+    Field(discriminator="shape"),
+]
+BooleanShape.model_rebuild()
+
+
+class CadSource(_Strict):
+    """CAD primitives and booleans (build123d), or a user's build123d script.
+
+    Give either ``parts`` (each top-level node is a named part) or ``script``: a
+    Python file run only because the recipe names it; its function
+    ``script_function`` returns a shape or a dict of part name → shape.
+    """
+
+    kind: Literal["cad"]
+    units: LengthUnit = LengthUnit.M
+    up_axis: UpAxis = Field(UpAxis.Z, description="CAD convention is Z up; it is rotated onto +Y.")
+    parts: Optional[list[ShapeNode]] = None
+    script: Optional[str] = None
+    script_function: str = Field("build", pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
+    script_engine: Literal["build123d", "cadquery"] = Field(
+        "build123d", description="Library the script uses; cadquery scripts run in the optional cadquery runtime.")
+    tolerance: Optional[PositiveFloat] = Field(
+        None, description="Tessellation chord tolerance in the source's units; default 0.1 % of the size.")
+
+    @model_validator(mode="after")
+    def _parts_or_script(self) -> "CadSource":
+        if (self.parts is None) == (self.script is None):
+            raise ValueError("give exactly one of 'parts' (primitives) or 'script' (a .py file)")
+        if self.parts is not None:
+            if not self.parts:
+                raise ValueError("'parts' is empty; add at least one shape")
+            names = [p.name for p in self.parts]
+            if any(n is None for n in names):
+                raise ValueError("every top-level part needs a 'name'")
+            dup = {n for n in names if names.count(n) > 1}
+            if dup:
+                raise ValueError(f"duplicate part names: {sorted(dup)}")
+        return self
+
+
+class MeshSource(_Strict):
+    """An imported mesh file (OBJ, STL, PLY, OFF, GLB/GLTF)."""
+
+    kind: Literal["mesh"]
+    path: str
+    up_axis: UpAxis = UpAxis.Y
+    units: LengthUnit = LengthUnit.M
+    scale: PositiveFloat = 1.0
+    parts_from: PartsFrom = PartsFrom.NODES
+
+
+class VoxelsSource(_Strict):
+    """A grid from another generator: .npy (occupancy) or .npz (occupancy, optional part/style)."""
+
+    kind: Literal["voxels"]
+    path: str
+    up_axis: UpAxis = UpAxis.Y
+    voxel_size_m: PositiveFloat = Field(0.05, description="Edge of one input voxel in metres.")
+
+
+SourceSpec = Annotated[Union[TextSource, CadSource, MeshSource, VoxelsSource], Field(discriminator="kind")]
+
+#: Fields of each source kind that name input files (resolved against the recipe's folder).
+SOURCE_FILE_FIELDS: dict[str, tuple[str, ...]] = {
+    "text": ("font",),
+    "cad": ("script",),
+    "mesh": ("path",),
+    "voxels": ("path",),
+}
+
+
+# --------------------------------------------------------------------------- per-asset settings
+
+
+class GridSettings(_Strict):
+    """How the source becomes the coarse labeled grid."""
+
+    resolution: int = Field(16, ge=4, le=64, description="Voxels across the fitted extent.")
+    fit: Optional[FitMode] = Field(None, description="Default: 'height' for text, 'longest' otherwise.")
+    voxel_size_m: Optional[PositiveFloat] = Field(None, description="Only with fit: voxel_size.")
+    max_cells: int = Field(
+        256, ge=4, le=1024,
+        description="Largest allowed coarse grid side (memory guard: the fine grid is 16× larger per axis; "
+                    "256 cells fit a ~20-letter line of text in about 1 GB).")
+    min_coverage: float = Field(0.5, gt=0, le=1, description="Fraction of a cell a shape must fill to occupy it.")
+    keep_thin: bool = Field(False, description="Keep parts thinner than a voxel (at least one voxel each).")
+
+    @model_validator(mode="after")
+    def _voxel_size(self) -> "GridSettings":
+        if (self.fit == FitMode.VOXEL_SIZE) != (self.voxel_size_m is not None):
+            raise ValueError("'voxel_size_m' goes together with fit: voxel_size (and only with it)")
+        return self
+
+
+class Band(_Strict):
+    """A slab of the asset's bounding box, as fractions of its extent along ``axis``."""
+
+    axis: Literal["x", "y", "z"] = "y"
+    from_: float = Field(0.0, ge=0, le=1, alias="from")
+    to: float = Field(1.0, ge=0, le=1)
+
+    @model_validator(mode="after")
+    def _order(self) -> "Band":
+        if self.from_ >= self.to:
+            raise ValueError("band 'from' must be smaller than 'to'")
+        return self
+
+
+BAND_SHORTCUTS = {"top": Band(**{"from": 0.5, "to": 1.0}), "bottom": Band(**{"from": 0.0, "to": 0.5})}
+
+
+class RegionRule(_Strict):
+    """Give matching voxels a part label and a style. Later rules override earlier ones.
+
+    A voxel matches when its source part matches one of ``parts`` (shell-style
+    globs over source part names) and, if ``band`` is given, it lies in the band.
+    """
+
+    parts: list[str] = Field(["*"], min_length=1)
+    band: Optional[Union[Literal["top", "bottom"], Band]] = None
+    part: str = Field(pattern=LABEL_PATTERN, description="Semantic part label, e.g. body, roof; "
+                      "'@source' keeps the source's own part name.")
+    style: str = Field(pattern=LABEL_PATTERN, description="Style name (an exemplar of the detailizer); "
+                       "'@source' keeps the style a voxels input carries.")
+
+    def band_range(self) -> Band | None:
+        if isinstance(self.band, str):
+            return BAND_SHORTCUTS[self.band]
+        return self.band
+
+
+class DetailizeSettings(_Strict):
+    detailizer: str = Field(DEFAULT_DETAILIZER, description="'decollage' (the learned model; the shipped weights "
+                            "unless 'checkpoint' names others) or 'upsample' (the non-learned baseline).")
+    checkpoint: Optional[str] = Field(None, description="Checkpoint file for a learned detailizer.")
+    seed: int = Field(0, ge=0)
+    device: Literal["auto", "cpu", "cuda"] = "auto"
+
+
+class ExportSettings(_Strict):
+    formats: list[ExportFormat] = Field([ExportFormat.GLB], min_length=1)
+    preview: bool = True
+    preview_size_px: int = Field(512, ge=64, le=4096)
+    taubin_iterations: int = Field(0, ge=0, le=200, description="Taubin smoothing passes; 0 = off.")
+    max_triangles: Optional[int] = Field(150_000, ge=4, description="Decimate above this; null = never.")
+    pivot: Pivot = Pivot.BOTTOM_CENTER
+    vertex_colors: bool = True
+    glb_material: bool = Field(False, description="Give GLBs a white matte material, for viewers whose default "
+                               "glTF material (fully metallic) shows vertex colours too dark.")
+    profile: EngineProfile = Field(EngineProfile.GENERIC, description="Engine conventions for names, LODs, "
+                                   "collision and axes: generic, unity, unreal, godot.")
+    lods: Optional[Union[list[int], list[float]]] = Field(
+        None, description="LOD chain: ratios of LOD0's triangles ([1.0, 0.5, 0.25]) or triangle counts "
+                          "([20000, 5000, 1000]); the first entry is LOD0.")
+    collision: CollisionKind = CollisionKind.NONE
+
+    @field_validator("lods")
+    @classmethod
+    def _lod_chain(cls, v: list | None) -> list | None:
+        if v is None:
+            return v
+        if not v:
+            raise ValueError("lods is empty; give e.g. [1.0, 0.5, 0.25] or leave it out")
+        if any(b >= a for a, b in zip(v, v[1:])):
+            raise ValueError("lods must decrease from LOD0 to the last level")
+        if isinstance(v[0], float):
+            if v[0] != 1.0 or v[-1] <= 0:
+                raise ValueError("lod ratios start at 1.0 (LOD0) and stay above 0")
+        elif v[-1] < 4:
+            raise ValueError("a LOD needs at least 4 triangles")
+        return v
+
+    @field_validator("formats")
+    @classmethod
+    def _unique(cls, v: list[ExportFormat]) -> list[ExportFormat]:
+        if len(set(v)) != len(v):
+            raise ValueError("formats are listed twice")
+        return v
+
+
+VariantValue = Union[str, int, float, bool]
+
+
+class Asset(_Strict):
+    name: str = Field(pattern=NAME_PATTERN, max_length=100)
+    variants: Optional[dict[str, list[VariantValue]]] = Field(
+        None, description="A matrix of values (key → list); the asset expands to one asset per combination, "
+                          "with ${key} replaced everywhere (see core/variants.py).")
+    name_template: Optional[str] = Field(None, description="Names of the expanded assets, e.g. "
+                                         "'{asset}_{style}_{seed}'; default: {asset}_ and every key in order.")
+    variant: Optional[dict[str, VariantValue]] = Field(
+        None, description="Set by the expansion: the values this asset was made with.")
+    source: SourceSpec
+    grid: GridSettings = GridSettings()
+    regions: list[RegionRule] = Field(min_length=1)
+    detailize: DetailizeSettings = DetailizeSettings()
+    export: ExportSettings = ExportSettings()
+
+    @property
+    def fit(self) -> FitMode:
+        """The grid fit with the per-kind default applied."""
+        if self.grid.fit is not None:
+            return self.grid.fit
+        return FitMode.HEIGHT if self.source.kind == "text" else FitMode.LONGEST
+
+
+class Defaults(_Strict):
+    grid: GridSettings = GridSettings()
+    detailize: DetailizeSettings = DetailizeSettings()
+    export: ExportSettings = ExportSettings()
+
+
+class Recipe(_Strict):
+    #: Per (expanded) asset: (index of the asset in the recipe file, variant name or None).
+    _origin: list[tuple[int, Optional[str]]] = PrivateAttr(default_factory=list)
+
+    version: Literal[1] = Field(description="Schema version; this tool reads version 1.")
+    defaults: Defaults = Defaults()
+    assets: list[Asset] = Field(min_length=1)
+
+    @field_validator("assets")
+    @classmethod
+    def _unique_names(cls, assets: list[Asset]) -> list[Asset]:
+        names = [a.name for a in assets]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"asset names must be unique; repeated: {dup}")
+        return assets
+
+
+# --------------------------------------------------------------------------- loading
+
+
+class LoadedRecipe:
+    """A validated recipe plus where it came from (for relative paths and messages)."""
+
+    def __init__(self, recipe: Recipe, path: Path, text: str) -> None:
+        self.recipe = recipe
+        self.path = path
+        self.base_dir = path.parent
+        self.text = text
+
+    def where(self, index: int) -> tuple[str, str | None]:
+        """(field path of expanded asset ``index`` in the recipe file, its variant name or None)."""
+        recipe_index, variant = self.recipe._origin[index]
+        return f"assets[{recipe_index}]", variant
+
+    def resolve(self, relative: str) -> Path:
+        """A path from the recipe, resolved against the recipe's folder."""
+        p = Path(relative).expanduser()
+        return p if p.is_absolute() else (self.base_dir / p)
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that refuses duplicate mapping keys (PyYAML silently keeps the last)."""
+
+
+def _construct_mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+    seen: dict[Any, Any] = {}
+    for key_node, value_node in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"duplicate key {key!r}", key_node.start_mark
+            )
+        seen[key] = loader.construct_object(value_node, deep=deep)
+    return seen
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def format_loc(loc: tuple) -> str:
+    """``('assets', 2, 'regions', 0, 'style')`` → ``assets[2].regions[0].style``."""
+    out = ""
+    for item in loc:
+        if isinstance(item, int):
+            out += f"[{item}]"
+        else:
+            out += ("." if out else "") + str(item)
+    return out
+
+
+_TAGGED_UNION_MEMBERS = {"text", "cad", "mesh", "voxels", "box", "cylinder", "sphere", "cone", "torus",
+                         "extrude", "union", "difference", "intersection"}
+
+
+def _clean_loc(loc: tuple) -> tuple:
+    """Drop pydantic's union-member tags (``source.text.font`` → ``source.font``)."""
+    cleaned = []
+    for i, item in enumerate(loc):
+        prev = loc[i - 1] if i else None
+        if isinstance(item, str) and item in _TAGGED_UNION_MEMBERS and prev in ("source", "parts", "children") or (
+            isinstance(item, str) and item in _TAGGED_UNION_MEMBERS and isinstance(prev, int)
+        ):
+            continue
+        if isinstance(item, str) and item.startswith(("function-", "literal[", "list[")):
+            continue
+        cleaned.append(item)
+    return tuple(cleaned)
+
+
+def _hint_for(err: dict) -> str | None:
+    kind = err.get("type", "")
+    if kind == "extra_forbidden":
+        return "remove it or check its spelling; 'decollage schema' lists every allowed key"
+    if kind == "missing":
+        return "add this field"
+    if kind == "union_tag_invalid":
+        return None
+    if kind.endswith("_type") or kind.endswith("_parsing"):
+        return "check the value's type"
+    return None
+
+
+def _message_for(err: dict) -> str:
+    kind = err.get("type", "")
+    msg = err.get("msg", "invalid value")
+    if kind == "extra_forbidden":
+        return "unknown key"
+    if kind == "union_tag_invalid":
+        ctx = err.get("ctx", {})
+        return f"unknown {ctx.get('discriminator', 'kind').strip(chr(39))} {ctx.get('tag')!r} (known: {ctx.get('expected_tags')})"
+    if kind == "union_tag_not_found":
+        ctx = err.get("ctx", {})
+        return f"missing {ctx.get('discriminator', 'kind').strip(chr(39))}"
+    msg = re.sub(r"^(Value error|Assertion failed), ", "", msg)
+    if "input" in err and kind not in ("missing",) and not isinstance(err["input"], (dict, list)):
+        msg += f" (got {err['input']!r})"
+    return msg
+
+
+def validation_error(exc: ValidationError, path: Path) -> RecipeError:
+    """Turn pydantic's errors into one RecipeError naming the first problem (and how many more)."""
+    errors = exc.errors()
+    first = errors[0]
+    field = format_loc(_clean_loc(tuple(first["loc"]))) or "(top level)"
+    message = _message_for(first)
+    if len(errors) > 1:
+        message += f" [+{len(errors) - 1} more problem(s); fix this one and validate again]"
+    return RecipeError(message, file=path, field=field, hint=_hint_for(first))
+
+
+def parse_recipe(text: str, path: Path) -> Recipe:
+    """Parse and validate recipe text; ``path`` is used for messages only."""
+    try:
+        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - SafeLoader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise RecipeError(f"not valid YAML: {problem}", file=path, field=where,
+                          hint="check indentation, colons and quotes") from None
+    if data is None:
+        raise RecipeError("the file is empty", file=path, hint="a recipe needs 'version: 1' and a list of 'assets'")
+    if not isinstance(data, dict):
+        raise RecipeError(f"the top level is a {type(data).__name__}, not a mapping", file=path,
+                          hint="start the file with 'version: 1' and 'assets:'")
+    try:
+        as_json = json.dumps(data)
+    except (TypeError, ValueError) as exc:
+        raise RecipeError(f"contains a value that is not plain data: {exc}", file=path,
+                          hint="quote dates and other special values") from None
+    defaults = data.get("defaults", {})
+    try:
+        Defaults.model_validate_json(json.dumps(defaults), strict=True)
+    except ValidationError as exc:
+        err = validation_error(exc, path)
+        err.field = "defaults" + ("." + err.field if err.field != "(top level)" else "")
+        raise err from None
+    origin = None
+    if isinstance(defaults, dict) and isinstance(data.get("assets"), list):
+        from core.variants import expand_assets
+
+        try:
+            assets, origin = expand_assets(data["assets"])
+        except RecipeError as exc:
+            raise exc.located(file=path) from None
+        data = dict(data)
+        data["assets"] = [_with_defaults(a, defaults) for a in assets]
+        as_json = json.dumps(data)
+    try:
+        recipe = Recipe.model_validate_json(as_json, strict=True)
+    except ValidationError as exc:
+        raise _at_recipe_index(validation_error(exc, path), origin) from None
+    recipe._origin = origin or [(i, None) for i in range(len(recipe.assets))]
+    return recipe
+
+
+def _at_recipe_index(err: RecipeError, origin: list[tuple[int, str | None]] | None) -> RecipeError:
+    """Point an error in an expanded asset back at the recipe's own asset (and name the variant)."""
+    match = re.match(r"^assets\[(\d+)\](.*)$", err.field or "")
+    if origin is None or not match or int(match.group(1)) >= len(origin):
+        return err
+    index, variant = origin[int(match.group(1))]
+    err.field = f"assets[{index}]{match.group(2)}"
+    if variant:
+        err.message += f" (in variant {variant})"
+    return err
+
+
+def _with_defaults(asset: Any, defaults: dict) -> Any:
+    """Merge ``defaults.{grid,detailize,export}`` under an asset's own settings (asset wins)."""
+    if not isinstance(asset, dict):
+        return asset
+    merged = dict(asset)
+    for key in ("grid", "detailize", "export"):
+        base = defaults.get(key) or {}
+        own = asset.get(key)
+        if isinstance(own, dict) or own is None:
+            merged[key] = {**base, **(own or {})}
+    return merged
+
+
+def load_recipe(path: str | Path) -> LoadedRecipe:
+    """Read, parse and validate a recipe file. Raises RecipeError."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise RecipeError("file not found", file=path, hint="check the path") from None
+    except IsADirectoryError:
+        raise RecipeError("is a directory, not a recipe file", file=path) from None
+    except OSError as exc:
+        raise RecipeError(f"cannot read: {exc.strerror}", file=path) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise RecipeError("not UTF-8 text (is this a binary file?)", file=path,
+                          hint="a recipe is a YAML text file") from None
+    recipe = parse_recipe(text, path)
+    return LoadedRecipe(recipe, path, text)
+
+
+def json_schema() -> dict:
+    """The JSON Schema of recipe version 1, for editor autocomplete."""
+    schema = Recipe.model_json_schema(by_alias=True)
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "decollage recipe"
+    return schema

@@ -1,0 +1,1 @@
+"""Evaluation: the protocol, the metrics, Cls, evaluate, ablation tables and benchmarking."""

@@ -1,0 +1,1 @@
+"""Style sets: the exemplar set format, the built-in registry, user import, contact sheets, catalogues, readers."""

@@ -1,0 +1,1 @@
+"""Procedural exemplar catalogues, one module per category family."""

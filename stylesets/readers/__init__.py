@@ -1,0 +1,1 @@
+"""Readers of real exemplar catalogues (meshes from installed packages)."""
