@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from cli.app import app
 
-RECIPES = Path(__file__).resolve().parent.parent / "recipes"
+RECIPES = Path(__file__).resolve().parents[2] / "recipes"
 
 
 @pytest.fixture(scope="module")

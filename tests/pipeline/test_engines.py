@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from cli.app import app
 from pipeline.engines import _merge_boxes, lod_targets
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 
 RECIPE = """
 version: 1

@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 from cli.app import app
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 
 BATCH = """
 version: 1

@@ -114,7 +114,7 @@ def test_json_schema_is_complete():
 
 
 def test_bundled_recipes_validate():
-    recipes = sorted((Path(__file__).parent.parent / "recipes").glob("*.yaml"))
+    recipes = sorted((Path(__file__).parents[2] / "recipes").glob("*.yaml"))
     assert len(recipes) >= 5
     for path in recipes:
         assert load_recipe(path).recipe.assets

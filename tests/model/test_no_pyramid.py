@@ -20,7 +20,7 @@ from model.train import TrainConfig, Trainer, train
 from model.windows import blockwise_forward, window_forward
 from core.errors import DetailizeError
 from core.grid import EMPTY, LabeledGrid
-from tests.test_model_train import EXS, PARTS, R
+from tests.model.test_train import EXS, PARTS, R
 
 
 def _inputs(gen: Generator, shape, seed=0):
