@@ -31,7 +31,7 @@ Engines:
   found, in order, at ``$DECOLLAGE_CADQUERY_PYTHON``; ``<repo>/.venv-cadquery/bin/python``
   (``<repo>`` = the folder holding ``sources/``); ``<parent of sys.prefix>/.venv-cadquery/bin/python``
   (a cadquery venv beside the main venv). ``bash scripts/install.sh cadquery``
-  creates it. That interpreter runs ``sources/_cadquery_runner.py`` (which
+  creates it. That interpreter runs ``sources/cadquery_runner.py`` (which
   imports nothing from decollage) in a subprocess; the runner tessellates each
   part to a binary STL plus ``index.json`` in a temporary folder, and this
   module loads them. Shapes accepted there: ``cq.Workplane`` (its ``.vals()``
@@ -51,13 +51,20 @@ import runpy
 import subprocess
 import sys
 import tempfile
-import traceback
 from pathlib import Path
 from typing import Any
 
 from core.errors import SourceError
 from core.recipe import NAME_PATTERN, CadSource
 from sources.base import PartMeshes
+from sources.cadquery_runner import MAX_MESSAGE_CHARS, describe_exception
+from sources.tessellate import (
+    ANGULAR_TOLERANCE_RAD,
+    DEFAULT_RELATIVE_TOLERANCE,
+    mesh_warnings,
+    shapes_to_parts,
+    vertices_to_part,
+)
 
 #: Wall-clock limit for one cadquery script run (subprocess start + import + script + tessellation), seconds.
 CADQUERY_TIMEOUT_S: float = 300.0
@@ -78,9 +85,8 @@ CADQUERY_INSTALL_HINT: str = (
 #: Module name scripts run under (anything but "__main__", so `if __name__ == "__main__":` blocks stay quiet).
 SCRIPT_MODULE_NAME: str = "decollage_script"
 
-_RUNNER = Path(__file__).resolve().with_name("_cadquery_runner.py")
+_RUNNER = Path(__file__).resolve().with_name("cadquery_runner.py")
 _ACCEPTED = "a shape, a dict of part name → shape, or a list of (name, shape) pairs"
-_MAX_MESSAGE_CHARS = 400
 
 
 def load(spec: CadSource, base_dir: Path) -> PartMeshes:
@@ -122,8 +128,6 @@ def resolve_script(spec: CadSource, base_dir: Path) -> Path:
 
 
 def _load_build123d(spec: CadSource, path: Path) -> tuple[dict, list[str]]:
-    from sources.cad import shapes_to_parts
-
     result = _call_script(path, spec.script_function)
     named = named_shapes(result, path, spec.script_function)
     return shapes_to_parts([(name, shape, "script") for name, shape in named], spec)
@@ -163,28 +167,8 @@ def _call_script(path: Path, function: str) -> Any:
 
 def script_error(exc: BaseException, path: Path) -> SourceError:
     """``script raised <Type>: <message> (line N of <file>)`` for an exception from a user's script."""
-    return SourceError(_describe_exception(exc, path), field="script",
+    return SourceError(describe_exception(exc, path), field="script",
                        hint="fix the script; run it with python to see the full traceback")
-
-
-def _describe_exception(exc: BaseException, path: Path) -> str:
-    line = None
-    if isinstance(exc, SyntaxError) and exc.filename and Path(exc.filename).resolve() == path:
-        line = exc.lineno
-        text = exc.msg
-    else:
-        text = str(exc)
-        # The innermost frame inside the script file is the line the user wrote.
-        for frame in traceback.extract_tb(exc.__traceback__):
-            if frame.filename and Path(frame.filename).resolve() == path:
-                line = frame.lineno
-    text = " ".join(text.split())
-    if len(text) > _MAX_MESSAGE_CHARS:
-        text = text[: _MAX_MESSAGE_CHARS - 1] + "…"
-    message = f"script raised {type(exc).__name__}" + (f": {text}" if text else "")
-    if line is not None:
-        message += f" (line {line} of {path.name})"
-    return message
 
 
 def named_shapes(result: Any, path: Path, function: str) -> list[tuple[str, Any]]:
@@ -266,8 +250,6 @@ def find_cadquery_python() -> Path:
 
 
 def _load_cadquery(spec: CadSource, path: Path) -> tuple[dict, list[str]]:
-    from sources.cad import ANGULAR_TOLERANCE_RAD, DEFAULT_RELATIVE_TOLERANCE, mesh_warnings, vertices_to_part
-
     python = find_cadquery_python()
     with tempfile.TemporaryDirectory(prefix="decollage-cq-") as tmp:
         outdir = Path(tmp)
@@ -312,7 +294,7 @@ def _runner_error(returncode: int, stderr: str, python: Path) -> SourceError:
                 else "script"
             return SourceError(str(report["message"]), field=field, hint=report.get("hint") or None)
     last = stderr.strip().splitlines()[-1] if stderr.strip() else "no error output"
-    return SourceError(f"the cadquery runtime {python} failed (exit code {returncode}): {last[:_MAX_MESSAGE_CHARS]}",
+    return SourceError(f"the cadquery runtime {python} failed (exit code {returncode}): {last[:MAX_MESSAGE_CHARS]}",
                        field="script_engine", hint=CADQUERY_INSTALL_HINT)
 
 

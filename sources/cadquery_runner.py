@@ -6,7 +6,7 @@ the standard library plus cadquery.
 
 Usage::
 
-    python _cadquery_runner.py SCRIPT FUNCTION OUTDIR [--tolerance T|auto]
+    python cadquery_runner.py SCRIPT FUNCTION OUTDIR [--tolerance T|auto]
                                [--relative-tolerance R] [--angular-tolerance A]
 
 It runs SCRIPT in a fresh namespace (``__name__ == "decollage_script"``), calls
