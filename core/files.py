@@ -17,7 +17,7 @@ import threading
 from pathlib import Path
 from types import TracebackType
 
-from core.errors import ExportError
+from core.errors import ExportError, SourceError
 
 _WRITABLE_HINT = "choose another output folder (--out) or fix its permissions"
 
@@ -189,3 +189,35 @@ def code_digest(*modules: str) -> str:
     for rel in modules:
         digest.update(rel.encode() + b"\0" + (root / rel).read_bytes() + b"\0")
     return digest.hexdigest()
+
+
+# --------------------------------------------------------------------------- input paths
+
+#: The hint of every "not found" error for a path a recipe names.
+RELATIVE_HINT = "the path is relative to the recipe's folder"
+
+
+def resolve_relative(relative: str | Path, base_dir: Path) -> Path:
+    """A path a recipe names (``~`` expanded), joined to the recipe's folder unless absolute; not checked."""
+    path = Path(relative).expanduser()
+    return path if path.is_absolute() else Path(base_dir) / path
+
+
+def input_file(relative: str | Path, base_dir: Path, *, field: str, noun: str, hint: str) -> Path:
+    """The absolute path of an input file a recipe names, which must exist and be a file.
+
+    Args:
+        relative: the recipe's value (relative to ``base_dir`` unless absolute).
+        base_dir: the recipe's folder.
+        field: the recipe field, for the error (e.g. ``"path"``).
+        noun: what the file is, for the messages (``"file"``, ``"script"``, ``"font file"``).
+        hint: how to fix a path that names something other than a file.
+    Raises:
+        SourceError: missing, or not a regular file.
+    """
+    path = resolve_relative(relative, base_dir).resolve()
+    if not path.exists():
+        raise SourceError(f"{noun} not found: {path}", field=field, hint=RELATIVE_HINT)
+    if not path.is_file():
+        raise SourceError(f"not a {noun}: {path}", field=field, hint=hint)
+    return path

@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
 
 from core.detailizer import DEFAULT_DETAILIZER
 from core.errors import RecipeError
+from core.files import resolve_relative
 
 SCHEMA_VERSION = 1
 
@@ -485,8 +486,7 @@ class LoadedRecipe:
 
     def resolve(self, relative: str) -> Path:
         """A path from the recipe, resolved against the recipe's folder."""
-        p = Path(relative).expanduser()
-        return p if p.is_absolute() else (self.base_dir / p)
+        return resolve_relative(relative, self.base_dir)
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):

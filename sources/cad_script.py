@@ -55,6 +55,7 @@ from pathlib import Path
 from typing import Any
 
 from core.errors import SourceError
+from core.files import input_file
 from core.recipe import NAME_PATTERN, CadSource
 from sources.base import PartMeshes
 from sources.cadquery_runner import MAX_MESSAGE_CHARS, describe_exception
@@ -111,13 +112,7 @@ def load(spec: CadSource, base_dir: Path) -> PartMeshes:
 def resolve_script(spec: CadSource, base_dir: Path) -> Path:
     """The script's absolute path; refuses missing files, folders and non-``.py`` files."""
     assert spec.script is not None
-    raw = Path(spec.script).expanduser()
-    path = (raw if raw.is_absolute() else Path(base_dir) / raw).resolve()
-    if not path.exists():
-        raise SourceError(f"script not found: {path}", field="script",
-                          hint="the path is relative to the recipe's folder")
-    if not path.is_file():
-        raise SourceError(f"script is not a file: {path}", field="script", hint="name a .py file")
+    path = input_file(spec.script, base_dir, field="script", noun="script", hint="name a .py file")
     if path.suffix != ".py":
         raise SourceError(f"script must be a .py file, got {path.name!r}", field="script",
                           hint="name a Python file that defines the build function")

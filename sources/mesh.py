@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from core.errors import SourceError
+from core.files import input_file
 from core.recipe import MeshSource, PartsFrom, UpAxis
 from sources.base import PartMeshes
 from sources.frames import transform_mesh
@@ -102,13 +103,7 @@ def read_named_parts(path: Path, up_axis: UpAxis | str = UpAxis.Y) -> list[tuple
 
 def resolve_path(relative: str, base_dir: Path) -> Path:
     """The file's absolute path; refuses missing files, folders and unsupported extensions."""
-    raw = Path(relative).expanduser()
-    path = (raw if raw.is_absolute() else Path(base_dir) / raw).resolve()
-    if not path.exists():
-        raise SourceError(f"file not found: {path}", field="path",
-                          hint="the path is relative to the recipe's folder")
-    if not path.is_file():
-        raise SourceError(f"not a file: {path}", field="path", hint="name a mesh file")
+    path = input_file(relative, base_dir, field="path", noun="file", hint="name a mesh file")
     ext = path.suffix.lower().lstrip(".")
     if ext not in SUPPORTED_FORMATS:
         raise SourceError(f"unsupported mesh format {path.suffix or '(no extension)'!r}", field="path",

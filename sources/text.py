@@ -56,6 +56,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from core.errors import SourceError
+from core.files import input_file
 from core.recipe import TextAlign, TextSource
 from sources.base import PartMeshes
 
@@ -251,16 +252,8 @@ def _legacy_kerning(font) -> dict[tuple[str, str], int]:
 
 def _resolve_font(font: str | None, base_dir: Path) -> Path:
     if font is None:
-        path = DEFAULT_FONT
-    else:
-        path = Path(font).expanduser()
-        if not path.is_absolute():
-            path = Path(base_dir) / path
-    if not path.is_file():
-        what = "is a directory, not a font file" if path.is_dir() else "font file not found"
-        raise SourceError(f"{what}: {path}", field="font",
-                          hint="check the path (relative paths start at the recipe's folder)")
-    return path
+        return DEFAULT_FONT
+    return input_file(font, base_dir, field="font", noun="font file", hint="name a .ttf or .otf font file")
 
 
 # --------------------------------------------------------------------------- layout

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import SourceError
+from core.files import input_file
 from core.grid import EMPTY
 from core.recipe import UpAxis, VoxelsSource
 from sources.base import PartVoxels
@@ -86,12 +87,7 @@ def rotate_grid(grid: np.ndarray, up: UpAxis | str) -> np.ndarray:
 
 
 def _resolve(relative: str, base_dir: Path) -> Path:
-    raw = Path(relative).expanduser()
-    path = (raw if raw.is_absolute() else Path(base_dir) / raw).resolve()
-    if not path.exists():
-        raise SourceError(f"file not found: {path}", field="path", hint="the path is relative to the recipe's folder")
-    if not path.is_file():
-        raise SourceError(f"not a file: {path}", field="path", hint="name a .npy or .npz file")
+    path = input_file(relative, base_dir, field="path", noun="file", hint="name a .npy or .npz file")
     if path.suffix.lower().lstrip(".") not in SUPPORTED_FORMATS:
         raise SourceError(f"unsupported voxel format {path.suffix or '(no extension)'!r}", field="path",
                           hint="supported: .npy (one occupancy array) or .npz (occupancy, part, style...)")
