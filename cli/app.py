@@ -1,6 +1,6 @@
-"""``decollage``: the command line. The only place that prints for people and maps errors to exit codes.
+"""``decollage``: the command line, one module per sub-command. The only place that prints for people.
 
-Exit codes:
+Exit codes (``cli/console.py``, ``ExitCode``):
     0  everything asked for was done (all assets built / recipe valid)
     1  some assets failed; the others were still built and are in the manifest
     2  invalid recipe or usage (nothing was built or written)
@@ -9,17 +9,18 @@ Exit codes:
 
 from __future__ import annotations
 
-import json
 import sys
-import time
-from pathlib import Path
-from typing import Optional
 
 import typer
 
-from core.errors import DecollageError, UsageError
-
-EXIT_OK, EXIT_ASSETS_FAILED, EXIT_INVALID, EXIT_INTERNAL = 0, 1, 2, 3
+from cli.bench import bench_command
+from cli.build import build_command
+from cli.console import ExitCode, stderr
+from cli.eval import eval_command
+from cli.schema import schema_command, version_command
+from cli.styles import styles_app
+from cli.train import train_command
+from cli.validate import validate_command
 
 app = typer.Typer(
     add_completion=False,
@@ -27,267 +28,13 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     help="Turn coarse 3D shapes into detailed, game-ready meshes.",
 )
-
-
-def _stderr():
-    from rich.console import Console
-
-    return Console(stderr=True, highlight=False, soft_wrap=True)
-
-
-def _fail(exc: DecollageError, code: int = EXIT_INVALID) -> None:
-    _stderr().print(f"[bold red]error:[/] {exc.one_line()}", markup=True)
-    raise typer.Exit(code)
-
-
-class _Stopped(Exception):
-    """--fail-fast: an asset failed; carries the reports so far."""
-
-    def __init__(self, reports) -> None:
-        super().__init__("stopped after a failure")
-        self.reports = reports
-
-
-class _ConsoleProgress:
-    """Asset-level progress on stderr: a live bar on a terminal, one line per asset otherwise."""
-
-    def __init__(self, total: int, quiet: bool, keep_going: bool = True) -> None:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-        self.console = _stderr()
-        self.quiet = quiet
-        self.keep_going = keep_going
-        self.live = self.console.is_terminal and not quiet
-        self.name = ""
-        self.reports: list = []
-        self.bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                            TimeElapsedColumn(), console=self.console, transient=True)
-        self.task = self.bar.add_task("building", total=total)
-
-    def __enter__(self):
-        if self.live:
-            self.bar.start()
-        return self
-
-    def __exit__(self, *exc):
-        if self.live:
-            self.bar.stop()
-
-    def asset_started(self, index: int, total: int, name: str) -> None:
-        self.name = name
-        self.bar.update(self.task, description=f"{name}: starting")
-
-    def stage(self, stage: str) -> None:
-        self.bar.update(self.task, description=f"{self.name}: {stage}")
-
-    def asset_finished(self, report) -> None:
-        self.reports.append(report)
-        self.bar.advance(self.task)
-        self.bar.update(self.task, description=f"{report.name}: {'cached' if report.cached else report.status}")
-        if not self.quiet:
-            if report.cached:
-                self.console.print(f"[dim]cached[/] {report.name}")
-            elif report.status == "built":
-                self.console.print(f"[green]built[/]  {report.name} ({sum(report.timings_s.values()):.1f} s)")
-            else:
-                self.console.print(f"[red]failed[/] {report.name}: {report.error}")
-            if not report.cached:
-                for w in report.warnings:
-                    self.console.print(f"  [yellow]warning:[/] {w}")
-        elif report.status == "failed":
-            self.console.print(f"[red]failed[/] {report.name}: {report.error}")
-        if report.status == "failed" and not self.keep_going:
-            raise _Stopped(list(self.reports))
-
-
-def _summary_table(reports, out_dir: Path):
-    from rich.table import Table
-
-    table = Table(title=f"decollage build → {out_dir}", title_justify="left")
-    for col in ("asset", "status", "triangles", "size (m)", "files", "time (s)"):
-        table.add_column(col, justify="right" if col in ("triangles", "time (s)") else "left")
-    for r in reports:
-        mesh = r.info.get("mesh", {})
-        if mesh:
-            lo, hi = mesh["bbox_min_m"], mesh["bbox_max_m"]
-            size = "×".join(f"{b - a:.2f}" for a, b in zip(lo, hi))
-        else:
-            size = ""
-        table.add_row(r.name, "built" if r.status == "built" else "[red]failed[/]",
-                      str(mesh.get("triangles", "")), size, ", ".join(sorted(r.outputs)),
-                      f"{sum(r.timings_s.values()):.1f}")
-    return table
-
-
-@app.command()
-def build(
-    recipe: Path = typer.Argument(..., help="Recipe YAML file."),
-    out: Path = typer.Option(Path("out"), "--out", "-o", help="Output folder (created if missing)."),
-    only: Optional[list[str]] = typer.Option(None, "--only", help="Build only assets with these names."),
-    detailizer: Optional[str] = typer.Option(None, "--detailizer", help="Override every asset's detailizer."),
-    jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="Worker processes on this machine."),
-    executor: str = typer.Option("local", "--executor", help="local, or dask (a cluster; needs --address)."),
-    address: Optional[str] = typer.Option(None, "--address", help="Cluster scheduler, e.g. tcp://host:8786."),
-    gpus_per_task: float = typer.Option(0.0, "--gpus-per-task", min=0.0,
-                                        help="GPUs a cluster task asks for (Dask resource 'GPU')."),
-    force: bool = typer.Option(False, "--force", help="Rebuild even assets whose outputs are up to date."),
-    list_only: bool = typer.Option(False, "--list", help="Show the assets (variants expanded) and stop."),
-    check: bool = typer.Option(False, "--check", help="Exit 1 if any output is stale; build nothing."),
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable summary on stdout; logs on stderr."),
-    keep_going: bool = typer.Option(True, "--keep-going/--fail-fast",
-                                    help="Build the other assets after a failure (default), or stop at the first."),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="Only errors and the summary."),
-    debug: bool = typer.Option(False, "--debug", help="Show tracebacks of internal errors."),
-) -> None:
-    """Build every asset of a recipe into meshes, previews and a manifest (only what changed)."""
-    from pipeline.build import build_recipe, check_recipe, plan_build
-    from pipeline.executors import make_executor
-    from core.recipe import load_recipe
-
-    started = time.perf_counter()
-    try:
-        loaded = load_recipe(recipe)
-        assets = loaded.recipe.assets
-        names = [a.name for a in assets]
-        unknown = sorted(set(only or ()) - set(names))
-        if unknown:
-            raise UsageError(f"--only names unknown assets {unknown} (assets: {names[:20]})")
-        selected = set(only) if only else None
-        pick = (lambda a: a.name in selected) if selected else None
-        if list_only:
-            _print_list(loaded, pick, json_out)
-            return
-        if check:
-            check_recipe(loaded, detailizer)
-            plan = plan_build(loaded, out, detailizer, pick)
-            _print_check(plan, json_out)
-            raise typer.Exit(EXIT_ASSETS_FAILED if any(p.cached_entry is None for p in plan) else EXIT_OK)
-        total = len(selected) if selected else len(names)
-        with _ConsoleProgress(total, quiet or json_out, keep_going) as progress:
-            runner = make_executor(executor, jobs, address, gpus_per_task, progress)
-            reports = build_recipe(loaded, out, progress, detailizer, only=pick, force=force, executor=runner)
-    except DecollageError as exc:
-        _fail(exc)
-    except _Stopped as stop:
-        reports = stop.reports
-    if debug:
-        for r in reports:
-            if r.traceback:
-                _stderr().print(r.traceback, markup=False)
-    wall = time.perf_counter() - started
-    if json_out:
-        sys.stdout.write(json.dumps(_json_summary(reports, recipe, out, wall), indent=2) + "\n")
-    else:
-        from rich.console import Console
-
-        Console(highlight=False).print(_summary_table(reports, out))
-        cached = sum(r.cached for r in reports)
-        built = sum(r.status == "built" and not r.cached for r in reports)
-        _stderr().print(f"{built} built, {cached} up to date (cached), "
-                        f"{sum(r.status == 'failed' for r in reports)} failed in {wall:.1f} s")
-    failed = [r for r in reports if r.status != "built"]
-    if failed:
-        _stderr().print(f"[red]{len(failed)} of {len(reports)} assets failed[/]; "
-                        f"the others are in {out} (see manifest.json)")
-        raise typer.Exit(EXIT_ASSETS_FAILED)
-
-
-def _print_list(loaded, pick, json_out: bool) -> None:
-    rows = []
-    for i, a in enumerate(loaded.recipe.assets):
-        if pick is None or pick(a):
-            where, _ = loaded.where(i)
-            rows.append({"name": a.name, "recipe_field": where, "source": a.source.kind, "variant": a.variant})
-    if json_out:
-        sys.stdout.write(json.dumps(rows, indent=2) + "\n")
-        return
-    for row in rows:
-        variant = " ".join(f"{k}={v}" for k, v in (row["variant"] or {}).items())
-        typer.echo(f"{row['name']}\t{row['source']}\t{row['recipe_field']}\t{variant}".rstrip())
-    typer.echo(f"{len(rows)} assets", err=True)
-
-
-def _print_check(plan, json_out: bool) -> None:
-    stale = [p.name for p in plan if p.cached_entry is None]
-    fresh = [p.name for p in plan if p.cached_entry is not None]
-    if json_out:
-        sys.stdout.write(json.dumps({"stale": stale, "up_to_date": fresh}, indent=2) + "\n")
-    else:
-        for name in stale:
-            typer.echo(f"stale\t{name}")
-        typer.echo(f"{len(stale)} stale, {len(fresh)} up to date", err=True)
-
-
-def _json_summary(reports, recipe: Path, out: Path, wall_s: float) -> dict:
-    return {
-        "recipe": str(recipe),
-        "out": str(out),
-        "manifest": str(out / "manifest.json"),
-        "wall_time_s": round(wall_s, 3),
-        "summary": {
-            "assets": len(reports),
-            "built": sum(r.status == "built" and not r.cached for r in reports),
-            "cached": sum(r.cached for r in reports),
-            "failed": sum(r.status == "failed" for r in reports),
-        },
-        "assets": [{"name": r.name, "status": "cached" if r.cached else r.status,
-                    "outputs": {k: str(out / v["path"]) for k, v in r.outputs.items()},
-                    **({"error": r.error} if r.error else {})} for r in reports],
-    }
-
-
-@app.command()
-def validate(recipes: list[Path] = typer.Argument(..., help="Recipe files to check.")) -> None:
-    """Check recipes (schema, input files, detailizer and style names) without building."""
-    from pipeline.build import check_recipe
-    from core.recipe import load_recipe
-
-    for path in recipes:
-        try:
-            loaded = load_recipe(path)
-            check_recipe(loaded)
-        except DecollageError as exc:
-            _fail(exc)
-        typer.echo(f"{path}: ok ({len(loaded.recipe.assets)} assets)")
-
-
-@app.command()
-def schema(out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write to a file instead of stdout.")) -> None:
-    """Print the JSON Schema of recipes (for editor autocomplete)."""
-    from core.recipe import json_schema
-
-    text = json.dumps(json_schema(), indent=2) + "\n"
-    if out is None:
-        sys.stdout.write(text)
-    else:
-        from core.files import write_bytes_atomic
-
-        try:
-            write_bytes_atomic(out, text.encode())
-        except DecollageError as exc:
-            _fail(exc)
-
-
-@app.command()
-def version() -> None:
-    """Print the version."""
-    from core import __version__
-
-    typer.echo(f"decollage {__version__}")
-
-
-from cli.train import train_command  # noqa: E402 - registered after the shared helpers above
-
+app.command("build")(build_command)
+app.command("validate")(validate_command)
+app.command("schema")(schema_command)
+app.command("version")(version_command)
 app.command("train")(train_command)
-
-from cli.eval import eval_command  # noqa: E402
 app.command("eval")(eval_command)
-from cli.bench import bench_command  # noqa: E402
 app.command("bench")(bench_command)
-
-
-from cli.styles import styles_app  # noqa: E402 - uses the shared helpers above lazily
-
 app.add_typer(styles_app, name="styles")
 
 
@@ -298,14 +45,14 @@ def main() -> None:
     except SystemExit:
         raise
     except KeyboardInterrupt:
-        _stderr().print("interrupted")
-        sys.exit(130)
+        stderr().print("interrupted")
+        sys.exit(ExitCode.INTERRUPTED)
     except Exception as exc:  # a bug: say so briefly, no traceback unless asked
         if "--debug" in sys.argv:
             raise
-        _stderr().print(f"internal error: {type(exc).__name__}: {exc} (run with --debug for the traceback)",
+        stderr().print(f"internal error: {type(exc).__name__}: {exc} (run with --debug for the traceback)",
                         markup=False)
-        sys.exit(EXIT_INTERNAL)
+        sys.exit(ExitCode.INTERNAL)
 
 
 if __name__ == "__main__":

@@ -16,7 +16,19 @@ from typing import Optional
 
 import typer
 
-from core.errors import DetailizeError
+from cli.console import fail, stderr
+from core.errors import DecollageError, DetailizeError
+from core.files import ensure_writable_dir
+from evaluation.benchmarking import (
+    REPO,
+    bench_assets,
+    measure_detailizer,
+    train_iteration_seconds,
+    write_doc_section,
+)
+from evaluation.evaluate import machine_info
+from model.infer import DEFAULT_CHECKPOINT, cpu_threads
+from stylesets.registry import resolve_style_set
 
 
 def bench_command(
@@ -34,31 +46,18 @@ def bench_command(
     quiet: bool = typer.Option(False, "--quiet", "-q"),
 ) -> None:
     """Time detailization (CPU, CUDA when present), example assets and training; write docs/benchmarks.md."""
-    from cli.app import _fail
-    from core.errors import DecollageError
 
     try:
         _bench(checkpoint, out, recipes, repeats, train_iterations, assets, threads, quiet)
     except DecollageError as exc:
-        _fail(exc)
+        fail(exc)
 
 
 def _bench(checkpoint, out, recipes, repeats, train_iterations, assets, threads, quiet) -> None:
     import torch
 
-    from evaluation.evaluate import machine_info
-    from model.infer import DEFAULT_CHECKPOINT, cpu_threads
-    from evaluation.benchmarking import (
-        REPO,
-        bench_assets,
-        measure_detailizer,
-        train_iteration_seconds,
-        write_doc_section,
-    )
-    from cli.app import _stderr
-    from core.files import ensure_writable_dir
 
-    console = _stderr()
+    console = stderr()
     say = (lambda line: None) if quiet else (lambda line: console.print(line, markup=False, highlight=False))
     if checkpoint is not None and not Path(checkpoint).is_file():
         raise DetailizeError("checkpoint not found", file=checkpoint, hint="check the path")
@@ -82,7 +81,6 @@ def _bench(checkpoint, out, recipes, repeats, train_iterations, assets, threads,
         asset_rows = bench_assets(recipes or [REPO / "recipes" / "showcase.yaml"], repeats, progress=say)
     train = None
     if train_iterations:
-        from stylesets.registry import resolve_style_set
 
         say(f"training: {train_iterations} + 1 iterations per schedule on the 'things' set …")
         train = train_iteration_seconds(resolve_style_set("things"), iterations=train_iterations,

@@ -17,8 +17,14 @@ from typing import Optional
 
 import typer
 
-from core.errors import UsageError
-from evaluation.protocol import DEFAULT_PROTOCOL
+from cli.console import fail, stderr
+from core.detailizer import get_detailizer
+from core.errors import DecollageError, UsageError
+from core.files import ensure_writable_dir
+from evaluation.benchmarking import write_doc_section
+from evaluation.evaluate import evaluate, markdown, write_report
+from evaluation.protocol import DEFAULT_PROTOCOL, ProtocolError, check_detailizer, load_protocol, resolve_protocol_set
+from model.infer import cpu_threads, resolve_device
 
 
 class ClsChoice(str, Enum):
@@ -43,26 +49,18 @@ def eval_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress lines."),
 ) -> None:
     """Evaluate a detailizer on the fixed protocol: Strict/Loose-IOU, LP-IOU, LP-F and Cls."""
-    from cli.app import _fail
-    from core.errors import DecollageError
 
     try:
         _eval(checkpoint, detailizer, protocol, out, limit, cls.value, device, threads, doc, quiet)
     except DecollageError as exc:
-        _fail(exc)
+        fail(exc)
 
 
 def _eval(checkpoint, detailizer, protocol_path, out, limit, cls, device, threads, doc, quiet) -> None:
     import torch
 
-    from evaluation.evaluate import evaluate, markdown, write_report
-    from model.infer import cpu_threads, resolve_device
-    from cli.app import _stderr
-    from core.detailizer import get_detailizer
-    from evaluation.protocol import ProtocolError, check_detailizer, load_protocol, resolve_protocol_set
-    from core.files import ensure_writable_dir
 
-    console = _stderr()
+    console = stderr()
     say = (lambda line: None) if quiet else (lambda line: console.print(line, markup=False, highlight=False))
     if checkpoint is None and detailizer is None:
         raise UsageError("say what to evaluate", field="--checkpoint",
@@ -95,7 +93,6 @@ def _eval(checkpoint, detailizer, protocol_path, out, limit, cls, device, thread
     typer.echo(markdown(report))
     say(f"wrote {js} and {md}")
     if doc is not None:
-        from evaluation.benchmarking import write_doc_section
 
         key = "eval:" + det.name + (f":{Path(checkpoint).stem}" if checkpoint is not None else "")
         write_doc_section(doc, key, markdown(report))

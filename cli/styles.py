@@ -22,9 +22,27 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.console import Console
+from rich.table import Table
 
+from cli.console import fail, stderr
 from core.errors import DecollageError, UsageError
 from core.recipe import UpAxis
+from stylesets.contact_sheet import write_contact_sheet
+from stylesets.format import (
+    DETAIL_RATIO_MIN,
+    RESOLUTION,
+    ExemplarError,
+    build_set,
+    inputs_hash,
+    load_set,
+    read_meta,
+    set_path,
+    style_dir,
+    vocabulary_from_arg,
+)
+from stylesets.registry import BUILTIN_SETS, builtin_set
+from stylesets.user_import import check_set_name, find_exemplars, import_folder
 
 styles_app = typer.Typer(
     no_args_is_help=True,
@@ -37,7 +55,6 @@ _OUT_HELP = "Folder of set files (default: $DECOLLAGE_STYLES_DIR, else ~/.cache/
 
 def _console():
     """stdout; piped output (logs, CI) gets wide rows instead of rich's default 80 columns."""
-    from rich.console import Console
 
     console = Console(highlight=False, soft_wrap=True)
     if not console.is_terminal:
@@ -47,9 +64,8 @@ def _console():
 
 def _progress(total: int, quiet: bool):
     """A ``build_set`` progress callback printing one line per voxelized exemplar to stderr."""
-    from cli.app import _stderr
 
-    console, done, started = _stderr(), [0], time.perf_counter()
+    console, done, started = stderr(), [0], time.perf_counter()
 
     def report(name: str) -> None:
         done[0] += 1
@@ -65,9 +81,7 @@ def _plural(n: int, word: str) -> str:
 
 
 def _exemplar_table(style_set):
-    from rich.table import Table
 
-    from stylesets.format import DETAIL_RATIO_MIN
 
     where = f" → {style_set.path}" if style_set.path else ""
     table = Table(title=f"style set '{style_set.name}': {_plural(len(style_set.exemplars), 'exemplar')} at "
@@ -93,16 +107,14 @@ def _exemplar_table(style_set):
 
 def _report(result, warnings, sheet: bool, quiet: bool) -> None:
     """Print the set's table, write its sheet, print the paths."""
-    from cli.app import _stderr
-    from stylesets.contact_sheet import write_contact_sheet
 
     console = _console()
     if not quiet:
         console.print(_exemplar_table(result.style_set))
     for warning in warnings:
-        _stderr().print(f"[yellow]warning:[/] {warning}")
+        stderr().print(f"[yellow]warning:[/] {warning}")
     state = "built" if result.built else "up to date (cached)"
-    _stderr().print(f"{state} in {result.seconds:.1f} s")
+    stderr().print(f"{state} in {result.seconds:.1f} s")
     typer.echo(f"set: {result.path}")
     if sheet:
         path, written = write_contact_sheet(result.style_set, force=result.built)
@@ -119,9 +131,6 @@ def build_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress lines and no table."),
 ) -> None:
     """Voxelize every exemplar of a built-in set at 256³ into one versioned set file (cached)."""
-    from cli.app import _fail, _stderr
-    from stylesets.format import RESOLUTION, build_set, set_path
-    from stylesets.registry import BUILTIN_SETS, builtin_set
 
     try:
         if set_name not in BUILTIN_SETS:
@@ -131,14 +140,14 @@ def build_command(
         vocab, specs = builtin_set(set_name)
         path = set_path(set_name, out)
         if not quiet:
-            _stderr().print(f"set '{set_name}': {_plural(len(specs), 'exemplar')} at {RESOLUTION}³, "
+            stderr().print(f"set '{set_name}': {_plural(len(specs), 'exemplar')} at {RESOLUTION}³, "
                             f"{jobs} workers → {path}",
                             markup=False)
         result = build_set(set_name, vocab, specs, path, force=force, workers=jobs,
                            progress=_progress(len(specs), quiet))
         _report(result, [], sheet, quiet)
     except DecollageError as exc:
-        _fail(exc)
+        fail(exc)
 
 
 @styles_app.command("import")
@@ -159,9 +168,6 @@ def import_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress lines and no table."),
 ) -> None:
     """Turn a folder of your own meshes into a style set (same format and cache as the built-in sets)."""
-    from cli.app import _fail, _stderr
-    from stylesets.format import set_path, vocabulary_from_arg
-    from stylesets.user_import import check_set_name, import_folder
 
     try:
         if resolution % 16:
@@ -170,7 +176,7 @@ def import_command(
         vocabulary = vocabulary_from_arg(vocab)
         check_set_name(name)
         if not quiet:
-            _stderr().print(f"importing {folder} as set '{name}' ({vocabulary.name} vocabulary, {resolution}³) "
+            stderr().print(f"importing {folder} as set '{name}' ({vocabulary.name} vocabulary, {resolution}³) "
                             f"→ {set_path(name, out)}", markup=False)
         progress = _progress(_count_exemplars(folder), quiet)
         result, warnings = import_folder(folder, name, vocabulary, out=out, resolution=resolution,
@@ -178,11 +184,10 @@ def import_command(
                                          workers=jobs, progress=progress)
         _report(result, warnings, sheet, quiet)
     except DecollageError as exc:
-        _fail(exc)
+        fail(exc)
 
 
 def _count_exemplars(folder: Path) -> int:
-    from stylesets.user_import import find_exemplars
 
     return len(find_exemplars(folder)[0])
 
@@ -192,11 +197,7 @@ def list_command(
     out: Optional[Path] = typer.Option(None, "--dir", "-d", help=_OUT_HELP),
 ) -> None:
     """List the built-in sets and every set file in the styles folder: exemplars, built or not, path."""
-    from rich.table import Table
 
-    from cli.app import _fail
-    from stylesets.format import ExemplarError, inputs_hash, read_meta, set_path, style_dir
-    from stylesets.registry import BUILTIN_SETS, builtin_set
 
     folder = Path(out) if out is not None else style_dir()
     table = Table(title=f"style sets in {folder}", title_justify="left")
@@ -234,7 +235,7 @@ def list_command(
             except ExemplarError as exc:
                 table.add_row(path.stem, "file", "-", "-", f"[red]unreadable[/] ({exc.message})", str(path))
     except DecollageError as exc:
-        _fail(exc)
+        fail(exc)
     _console().print(table)
 
 
@@ -250,10 +251,6 @@ def show_command(
     out: Optional[Path] = typer.Option(None, "--dir", "-d", help=_OUT_HELP),
 ) -> None:
     """Print a set's exemplars (categories, parts, voxels, detail ratio, source, licence) and draw its sheet."""
-    from cli.app import _fail
-    from stylesets.format import ExemplarError, load_set, set_path, style_dir
-    from stylesets.contact_sheet import write_contact_sheet
-    from stylesets.registry import BUILTIN_SETS
 
     try:
         if no_sheet and sheet is not None:
@@ -272,4 +269,4 @@ def show_command(
             written_to, _ = write_contact_sheet(style_set, sheet)
             typer.echo(f"sheet: {written_to}")
     except DecollageError as exc:
-        _fail(exc)
+        fail(exc)

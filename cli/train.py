@@ -14,8 +14,15 @@ from enum import Enum
 from pathlib import Path
 
 import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from model.ablations import ABLATIONS
+from cli.console import fail, stderr
+from core.errors import DecollageError
+from core.files import ensure_writable_dir
+from model.ablations import ABLATIONS, ablation_configs
+from model.config import ModelConfig
+from model.data import exemplars_from_set
+from model.train import TrainConfig, train
 from stylesets.registry import resolve_style_set
 
 
@@ -50,32 +57,20 @@ def train_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Train the DECOLLAGE detailizer on a style exemplar set (resumable; CPU or CUDA)."""
-    from cli.app import _fail, _stderr
-    from core.errors import DecollageError
 
     try:
         _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_every, preview_every,
                recon_early_iters, resume, quiet, ablation.value)
     except DecollageError as exc:
-        _fail(exc)
+        fail(exc)
     except KeyboardInterrupt:
-        _stderr().print(f"interrupted; resume with the same command (from {out / 'last.pt'})")
+        stderr().print(f"interrupted; resume with the same command (from {out / 'last.pt'})")
         raise typer.Exit(130)
 
 
 def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_every, preview_every,
            recon_early_iters, resume, quiet, ablation="full") -> None:
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
-        TimeRemainingColumn
-
-    from model.ablations import ablation_configs
-    from model.config import ModelConfig
-    from model.data import exemplars_from_set
-    from model.train import TrainConfig, train
-    from cli.app import _stderr
-    from core.files import ensure_writable_dir
-
-    console = _stderr()
+    console = stderr()
     ensure_writable_dir(out)
     sset = resolve_style_set(style_set, progress=None if quiet else lambda n: console.print(f"  voxelized {n}"))
     exemplars = exemplars_from_set(sset)

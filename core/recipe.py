@@ -31,6 +31,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
 from core.detailizer import DEFAULT_DETAILIZER
 from core.errors import RecipeError
 from core.files import resolve_relative
+from core.variants import expand_assets
 
 SCHEMA_VERSION = 1
 
@@ -608,7 +609,6 @@ def parse_recipe(text: str, path: Path) -> Recipe:
         raise err from None
     origin = None
     if isinstance(defaults, dict) and isinstance(data.get("assets"), list):
-        from core.variants import expand_assets
 
         try:
             assets, origin = expand_assets(data["assets"])

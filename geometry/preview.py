@@ -36,6 +36,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from core.files import write_bytes_atomic
+
 if TYPE_CHECKING:
     import trimesh
     from PIL import Image
@@ -115,7 +117,6 @@ def save_preview(mesh: "trimesh.Trimesh", path: Path, size_px: int = 512,
 
     Raises ExportError if the file cannot be written.
     """
-    from core.files import write_bytes_atomic
 
     image = render_preview(mesh, size_px, renderer=renderer)
     buffer = io.BytesIO()

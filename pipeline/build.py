@@ -20,11 +20,20 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pipeline.cache import asset_key, remove_stale_temporaries, valid_record, write_record
-from core.files import sha256_file
+from core.detailizer import effective_checkpoint, get_detailizer
 from core.errors import DecollageError, RecipeError
-from core.structure import strict_loose_iou
+from core.files import ensure_writable_dir, sha256_file
 from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset, LoadedRecipe, parse_recipe
+from core.structure import strict_loose_iou
+from geometry.voxelize import voxelize
+from pipeline.cache import asset_key, remove_stale_temporaries, valid_record, write_record
+from pipeline.engines import make_collision, make_lods
+from pipeline.executors import LocalExecutor
+from pipeline.export import apply_pivot, export_asset
+from pipeline.manifest import write_manifest
+from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
+from pipeline.regions import apply_regions
+from sources import load_source
 
 
 @dataclass
@@ -97,7 +106,6 @@ def _detailizer_of(asset: Asset, loaded: LoadedRecipe, override: str | None) -> 
 
 def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -> None:
     """Static checks before building. Raises RecipeError naming file and field."""
-    from core.detailizer import get_detailizer
 
     for i, asset in enumerate(loaded.recipe.assets):
         where, variant = loaded.where(i)
@@ -129,7 +137,6 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
 def plan_build(loaded: LoadedRecipe, out_dir: Path, detailizer_override: str | None = None,
                only: Callable[[Asset], bool] | None = None, force: bool = False) -> list[PlannedAsset]:
     """Content keys of the selected assets, and which of them are up to date in ``out_dir``."""
-    from core.detailizer import effective_checkpoint
 
     planned, weight_hashes = [], {}
     for i, asset in enumerate(loaded.recipe.assets):
@@ -197,13 +204,6 @@ def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progr
 
 def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progress,
            report: AssetReport, detailizer_override: str | None) -> None:
-    from core.detailizer import get_detailizer
-    from pipeline.engines import make_collision, make_lods
-    from pipeline.export import apply_pivot, export_asset
-    from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
-    from pipeline.regions import apply_regions
-    from geometry.voxelize import voxelize
-    from sources import load_source
 
     report.inputs = {
         "entry_sha256": hashlib.sha256(asset.model_dump_json(by_alias=True).encode()).hexdigest(),
@@ -234,9 +234,7 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
 
     export = asset.export
     with _timed(report, "mesh", progress):
-        mesh = mesh_fine_grid(fine, MeshSettings(taubin_iterations=export.taubin_iterations,
-                                                 max_triangles=export.max_triangles,
-                                                 vertex_colors=export.vertex_colors))
+        mesh = mesh_fine_grid(fine, MeshSettings.from_export(export))
         lods = make_lods(mesh, fine, export.lods)
         collision = make_collision(export.collision, mesh, grid)
 
@@ -314,9 +312,6 @@ def build_recipe(loaded: LoadedRecipe, out_dir: Path, progress: Progress | None 
     taken from a valid record). ``executor`` defaults to building in this process.
     On KeyboardInterrupt the manifest of what finished is written before re-raising.
     """
-    from pipeline.executors import LocalExecutor
-    from core.files import ensure_writable_dir
-    from pipeline.manifest import write_manifest
 
     progress = progress or Progress()
     executor = executor or LocalExecutor(progress)

@@ -18,7 +18,7 @@ from importlib import metadata
 from pathlib import Path
 
 from core import __version__
-from core.files import sha256_file
+from core.files import sha256_file, write_bytes_atomic
 
 RECORD_DIR = ".decollage"
 RECORD_FORMAT = 1
@@ -64,7 +64,6 @@ def record_path(out_dir: Path, name: str) -> Path:
 
 def write_record(out_dir: Path, name: str, key: str, entry: dict) -> None:
     """Record that ``name`` was built with ``key`` (after its outputs are in place)."""
-    from core.files import write_bytes_atomic
 
     (out_dir / RECORD_DIR).mkdir(exist_ok=True)
     # Key order is kept: a cached entry must serialise exactly like a fresh one.

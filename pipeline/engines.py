@@ -32,12 +32,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from core.errors import MeshingError
+from core.grid import FineGrid, LabeledGrid
 from core.recipe import CollisionKind, EngineProfile
+from pipeline.mesh import _decimate, vertex_style_colors
 
 if TYPE_CHECKING:
     import trimesh
 
-    from core.grid import FineGrid, LabeledGrid
 
 #: Most boxes a ``boxes`` collision may have (engines slow down with many convex pieces).
 MAX_COLLISION_BOXES = 64
@@ -67,7 +68,6 @@ def make_lods(lod0: "trimesh.Trimesh", fine: "FineGrid", lods: list | None) -> l
     """LOD1..n as decimations of ``lod0`` (metres), coloured like it. Empty without ``lods``."""
     import trimesh
 
-    from pipeline.mesh import _decimate, vertex_style_colors
 
     if not lods or len(lods) < 2:
         return []

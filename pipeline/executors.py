@@ -19,6 +19,7 @@ tasks only land on workers started with ``--resources "GPU=1"``.
 
 from __future__ import annotations
 
+import importlib
 import os
 from collections.abc import Callable, Sequence
 
@@ -28,17 +29,14 @@ from core.errors import UsageError
 CONNECT_TIMEOUT_S = 10
 
 
-def _worker_init(threads: int) -> None:
-    """Runs once per worker process: pin thread counts, import the heavy stack once."""
+def _worker_init(threads: int, task_module: str) -> None:
+    """Runs once per worker process: pin thread counts, import the heavy stack and the task's module once."""
     os.environ["OMP_NUM_THREADS"] = str(threads)
     import numpy  # noqa: F401
     import trimesh  # noqa: F401
     from skimage import measure  # noqa: F401
 
-    import pipeline.build  # noqa: F401
-    import pipeline.export  # noqa: F401
-    import pipeline.mesh  # noqa: F401
-    import geometry.preview  # noqa: F401
+    importlib.import_module(task_module)  # the task function's module and everything it imports
 
     try:
         import torch
@@ -86,7 +84,7 @@ class ProcessExecutor:
         # spawn: a clean interpreter per worker (fork after threads started is unsafe).
         context = multiprocessing.get_context("spawn")
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                   initializer=_worker_init, initargs=(threads,))
+                                   initializer=_worker_init, initargs=(threads, fn.__module__))
         try:
             futures = [pool.submit(fn, *args) for args in tasks]
             for future in as_completed(futures):

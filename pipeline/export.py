@@ -21,8 +21,10 @@ import numpy as np
 
 from core.errors import DecollageError, ExportError
 from core.files import AtomicWriter, ensure_writable_dir
-from pipeline.mesh import mesh_stats  # noqa: F401 - part of this module's API (manifest facts)
 from core.recipe import EngineProfile, ExportFormat, Pivot
+from geometry.preview import preview_png
+from pipeline.engines import layout, other_format_transform
+from pipeline.mesh import mesh_stats  # noqa: F401 - part of this module's API (manifest facts)
 
 if TYPE_CHECKING:
     import trimesh
@@ -203,7 +205,6 @@ def export_asset(
         ExportError: the folder is not writable, or encoding/writing any file failed;
             in that case none of this call's files exist.
     """
-    from pipeline.engines import layout, other_format_transform
 
     if not stem or Path(stem).name != stem or stem.startswith("."):
         raise ValueError(f"stem must be a plain, visible file name, got {stem!r}")
@@ -225,7 +226,6 @@ def export_asset(
         else:
             jobs.append((fmt.value, f"{stem}.{fmt.value}", lambda fmt=fmt: ENCODERS[fmt](other, stem)))
     if preview_size_px is not None:
-        from geometry.preview import preview_png
 
         jobs.append(("preview", f"{stem}.png", lambda: preview_png(moved, preview_size_px)))
     written: dict[str, Path] = {}

@@ -14,6 +14,7 @@ import platform
 from pathlib import Path
 
 from core import __version__
+from core.files import sha256_file, write_bytes_atomic
 from core.grid import ISO_LEVEL
 
 MANIFEST_NAME = "manifest.json"
@@ -24,7 +25,6 @@ AXES = {"up": "+Y", "front": "+Z", "right": "+X", "units": "m", "convention": "g
 
 def manifest_dict(loaded, reports) -> dict:
     """The manifest of a build: ``reports`` in recipe order (cached ones carry their recorded entry)."""
-    from core.files import sha256_file
 
     return {
         "format": MANIFEST_FORMAT,
@@ -43,7 +43,6 @@ def manifest_dict(loaded, reports) -> dict:
 
 def write_manifest(out_dir: Path, loaded, reports) -> Path:
     """Write ``out_dir/manifest.json`` atomically; returns its path."""
-    from core.files import write_bytes_atomic
 
     path = out_dir / MANIFEST_NAME
     text = json.dumps(manifest_dict(loaded, reports), indent=2, sort_keys=False) + "\n"

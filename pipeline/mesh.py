@@ -26,12 +26,12 @@ import numpy as np
 
 from core.errors import MeshingError
 from core.grid import ISO_LEVEL, FineGrid
+from core.recipe import ExportSettings
 from pipeline.palette import palette_rgba
 
 if TYPE_CHECKING:
     import trimesh
 
-    from core.recipe import ExportSettings
 
 # Taubin's classic pass-band choice: λ = 0.5, μ = -0.53 (k_PB ≈ 0.1) removes the
 # marching-cubes staircase with almost no shrinkage.

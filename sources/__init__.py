@@ -1,29 +1,29 @@
-"""Sources: one module per kind, each with ``load(spec, base_dir) -> SourceResult``.
+"""Sources: one module per recipe source kind, each exposing ``load(spec, base_dir) -> SourceResult``.
 
-Modules are imported only when a recipe uses their kind (build123d alone costs
-seconds to import).
+The modules are light to import: the heavy libraries they use (build123d,
+trimesh, fontTools) are imported inside the functions that need them, so only
+the kinds a recipe uses pay for them.
 """
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
-from sources.base import PartMeshes, PartVoxels, SourceResult
+from sources import cad, mesh, text, voxels
+from sources.base import PartMeshes, PartVoxels, Source, SourceResult
 
-#: source kind (the recipe's ``source.kind``) → module implementing ``load``.
-REGISTRY: dict[str, str] = {
-    "text": "sources.text",
-    "cad": "sources.cad",
-    "mesh": "sources.mesh",
-    "voxels": "sources.voxels",
+#: source kind (the recipe's ``source.kind``) → its ``load``.
+REGISTRY: dict[str, Source] = {
+    "text": text.load,
+    "cad": cad.load,
+    "mesh": mesh.load,
+    "voxels": voxels.load,
 }
 
 
 def load_source(spec, base_dir: Path) -> SourceResult:
-    """Run the source module registered for ``spec.kind``."""
-    module = importlib.import_module(REGISTRY[spec.kind])
-    return module.load(spec, base_dir)
+    """Run the source registered for ``spec.kind`` (a recipe source spec, ``core/recipe.py``)."""
+    return REGISTRY[spec.kind](spec, base_dir)
 
 
 __all__ = ["REGISTRY", "load_source", "PartMeshes", "PartVoxels", "SourceResult"]

@@ -37,7 +37,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Sequence
 
-
 from core.errors import SourceError
 from core.recipe import (
     BooleanShape,
@@ -52,6 +51,7 @@ from core.recipe import (
 from sources import cad_script
 from sources.base import PartMeshes
 from sources.tessellate import shapes_to_parts
+
 
 def load(spec: CadSource, base_dir: Path) -> PartMeshes:
     """Build the parts of a ``cad`` source.

@@ -10,10 +10,13 @@ deterministic, headless). Tiles carry the exemplar's name and category.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from core.files import code_digest, ensure_writable_dir, write_bytes_atomic
+from geometry.preview import render_preview
 from stylesets.format import Exemplar, StyleSet
 
 if TYPE_CHECKING:
@@ -63,7 +66,6 @@ def exemplar_mesh(exemplar: Exemplar) -> "trimesh.Trimesh":
 
 def render_exemplar(exemplar: Exemplar, size_px: int = 320) -> "Image.Image":
     """One exemplar's tile image (no caption)."""
-    from geometry.preview import render_preview
 
     return render_preview(exemplar_mesh(exemplar), size_px=size_px, azimuth_deg=35.0, elevation_deg=22.0,
                           supersample=2)
@@ -108,7 +110,6 @@ SHEET_HASH_KEY = "decollage-style-set"
 
 def _code_hash() -> str:
     """sha256 (16 hex digits) of the code that draws sheets: a new renderer redraws old sheets."""
-    from core.files import code_digest
 
     return code_digest("stylesets/contact_sheet.py", "geometry/preview.py")[:16]
 
@@ -133,7 +134,6 @@ def write_contact_sheet(style_set: StyleSet, path: "Path | None" = None, force: 
 
     from PIL import Image, PngImagePlugin
 
-    from core.files import ensure_writable_dir, write_bytes_atomic
 
     path = Path(path) if path is not None else sheet_path(style_set)
     stamp = f"{style_set.name}:{style_set.inputs_hash}:{_code_hash()}"

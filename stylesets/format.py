@@ -40,7 +40,6 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-import math
 import os
 import sys
 import time
@@ -51,8 +50,12 @@ from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
-from core.files import code_digest, sha256_file
-from core.errors import DecollageError
+from core.errors import DecollageError, VoxelizeError
+from core.files import code_digest, ensure_writable_dir, sha256_file, write_bytes_atomic
+from core.recipe import FitMode, GridSettings
+from geometry.voxelize import voxelize
+from sources.base import PartMeshes
+from stylesets.catalogues.prims import merge
 
 if TYPE_CHECKING:
     import trimesh
@@ -242,10 +245,6 @@ def voxelize_parts(parts: dict[str, "trimesh.Trimesh"], part_labels: Sequence[in
     Solid fill and labels by the project voxelizer at voxel centres; the
     shape's longest side spans ``fit_voxels(resolution)`` voxels, centred.
     """
-    from core.errors import VoxelizeError
-    from core.recipe import FitMode, GridSettings
-    from geometry.voxelize import voxelize
-    from sources.base import PartMeshes
 
     settings = GridSettings.model_construct(resolution=fit_voxels(resolution), fit=FitMode.LONGEST,
                                             voxel_size_m=None, max_cells=resolution, min_coverage=0.5,
@@ -300,7 +299,6 @@ def detail_figures(occ: np.ndarray, coarse_side: int = COARSE_SIDE) -> dict:
 
 def make_exemplar(spec: ExemplarSpec, vocabulary: Vocabulary, resolution: int = RESOLUTION) -> Exemplar:
     """Build one exemplar from its spec: make the meshes, check parts, voxelize, measure, crop."""
-    from stylesets.catalogues.prims import merge
 
     try:
         raw = spec.make()
@@ -483,7 +481,6 @@ def build_set(name: str, vocabulary: Vocabulary, specs: Sequence[ExemplarSpec], 
     ``workers`` > 1 voxelizes exemplars in that many processes (the result is
     identical: exemplars are independent and kept in spec order).
     """
-    from core.files import ensure_writable_dir, write_bytes_atomic
 
     started = time.perf_counter()
     path = Path(path) if path is not None else set_path(name)
@@ -525,9 +522,3 @@ def _make_all(specs, vocabulary, resolution, workers, progress) -> list[Exemplar
             if progress:
                 progress(spec.name)
         return out
-
-
-def detail_ok(meta: dict) -> bool:
-    """Whether an exemplar record passes the detail sanity check."""
-    return bool(meta.get("detail")) and meta["detail"]["ratio"] >= DETAIL_RATIO_MIN and math.isfinite(
-        meta["detail"]["ratio"])

@@ -13,14 +13,25 @@ from functools import partial
 from pathlib import Path
 from typing import Callable
 
-from stylesets.format import FURNITURE, THINGS, ExemplarError, ExemplarSpec, StyleSet, Vocabulary, build_set, \
-    load_set, set_path
+from stylesets.catalogues.furniture import CHAIRS, TABLES, chair_parts, table_parts
+from stylesets.catalogues.things import THINGS_CATALOGUE
+from stylesets.format import (
+    FURNITURE,
+    THINGS,
+    ExemplarError,
+    ExemplarSpec,
+    StyleSet,
+    Vocabulary,
+    build_set,
+    load_set,
+    set_path,
+)
+from stylesets.readers.monastery import monastery_specs
+from stylesets.readers.sweethome import sweethome_specs
 
 
 def furniture_specs() -> list[ExemplarSpec]:
     """16 chairs + 16 tables, procedural."""
-    from stylesets.catalogues.furniture import CHAIRS, TABLES, chair_parts, table_parts
-
     specs = [ExemplarSpec(name, "chair", partial(chair_parts, d), repr(d)) for name, d in CHAIRS.items()]
     specs += [ExemplarSpec(name, "table", partial(table_parts, d), repr(d)) for name, d in TABLES.items()]
     return specs
@@ -28,35 +39,15 @@ def furniture_specs() -> list[ExemplarSpec]:
 
 def things_specs() -> list[ExemplarSpec]:
     """Buildings, plants, cakes and crystals, procedural."""
-    try:
-        from stylesets.catalogues.things import THINGS_CATALOGUE
-    except ImportError:  # not written yet (issue 3, in progress)
-        raise ExemplarError("the 'things' set has no exemplars yet", field="set",
-                            hint="only 'furniture' can be built so far") from None
-
     return [ExemplarSpec(name, category, partial(fn, **kw), f"{fn.__name__}{sorted(kw.items())}")
             for name, (category, fn, kw) in THINGS_CATALOGUE.items()]
-
-
-def monastery_specs() -> list[ExemplarSpec]:
-    """Temple buildings of pybullet_data's samurai_monastry.obj; ExemplarError when pybullet is not installed."""
-    from stylesets.readers.monastery import monastery_specs as specs
-
-    return specs()
-
-
-def sweethome_specs() -> list[ExemplarSpec]:
-    """Chairs and tables of sweethome3d-furniture; ExemplarError when the package is not installed."""
-    from stylesets.readers.sweethome import sweethome_specs as specs
-
-    return specs()
 
 
 BUILTIN_SETS: dict[str, tuple[Vocabulary, Callable[[], list[ExemplarSpec]]]] = {
     "furniture": (FURNITURE, furniture_specs),
     "things": (THINGS, things_specs),
-    "monastery": (THINGS, monastery_specs),
-    "sweethome": (FURNITURE, sweethome_specs),
+    "monastery": (THINGS, monastery_specs),  # ExemplarError when pybullet is not installed
+    "sweethome": (FURNITURE, sweethome_specs),  # ExemplarError when sweethome3d-furniture is not installed
 }
 
 

@@ -38,9 +38,11 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
+from core.errors import DecollageError, SourceError
 from core.files import code_digest
-from core.errors import DecollageError
+from sources.mesh import read_named_parts, sanitize_name
 from stylesets.format import RESOLUTION, BuildResult, ExemplarError, ExemplarSpec, Vocabulary, build_set, set_path
+from stylesets.registry import BUILTIN_SETS
 
 if TYPE_CHECKING:
     import trimesh
@@ -76,7 +78,6 @@ class FolderEntry:
 
 def check_set_name(name: str) -> str:
     """A user set name: a plain file name that is not a built-in set's."""
-    from stylesets.registry import BUILTIN_SETS
 
     if not _SET_NAME.match(name or ""):
         raise ExemplarError(f"bad set name {name!r}", field="name",
@@ -138,7 +139,6 @@ def _is_companion(path: Path) -> bool:
 
 def find_exemplars(folder: Path) -> tuple[list[FolderEntry], list[str]]:
     """The exemplars in ``folder`` (sorted by name) and warnings about skipped files."""
-    from sources.mesh import sanitize_name
 
     folder = Path(folder)
     if not folder.exists():
@@ -182,8 +182,6 @@ def find_exemplars(folder: Path) -> tuple[list[FolderEntry], list[str]]:
 
 
 def _read(file: Path, up: str, exemplar: str) -> list[tuple[str, "trimesh.Trimesh"]]:
-    from core.errors import SourceError
-    from sources.mesh import read_named_parts
 
     try:
         return read_named_parts(file, up)

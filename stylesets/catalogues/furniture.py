@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stylesets.catalogues.prims import bar, box, lathe, ring_of, rod, sphere, torus
+from stylesets.catalogues.prims import bar, box, hull, lathe, ring_of, rod, sphere, torus
 
 
 @dataclass(frozen=True)
@@ -264,7 +264,6 @@ def _top_outline(d: TableDesign, shrink: float, n: int = 48) -> list[tuple[float
 
 
 def _slab(outline, y0: float, y1: float):
-    from stylesets.catalogues.prims import hull
 
     pts = [(x, y, z) for x, z in outline for y in (y0, y1)]
     return hull(np.array(pts))

@@ -78,6 +78,7 @@ from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
+from geometry.voxelize import solid_occupancy
 from stylesets.format import RESOLUTION, ExemplarError, ExemplarSpec, fit_voxels
 from stylesets.readers.file_cache import cached_per_file
 from stylesets.readers.obj_text import GroupedObj, parse_obj
@@ -342,7 +343,6 @@ def labelled_fill(obj: GroupedObj, faces: np.ndarray, roof: np.ndarray, origin: 
     import trimesh
     from scipy import ndimage
 
-    from geometry.voxelize import solid_occupancy
 
     body_occ = np.zeros(dims, dtype=bool)
     roof_occ = np.zeros(dims, dtype=bool)

@@ -72,6 +72,7 @@ import numpy as np
 
 from stylesets.format import FURNITURE, RESOLUTION, ExemplarError, ExemplarSpec
 from stylesets.readers.file_cache import cached_per_file
+from stylesets.readers.monastery import cube_part_meshes, face_components, labelled_fill, lattice
 from stylesets.readers.obj_text import GroupedObj, parse_obj
 
 if TYPE_CHECKING:
@@ -331,7 +332,6 @@ def _conditions(where: str) -> list[tuple[int, bool, str, float]]:
 
 def face_parts(obj: GroupedObj, rules: tuple[Rule, ...], name: str = "") -> np.ndarray:
     """(F,) object array: the part of every face ("" = left out), by the label map (module docstring)."""
-    from stylesets.readers.monastery import face_components
 
     accepted = set(FURNITURE.accepted())
     for rule in rules:
@@ -382,7 +382,6 @@ def face_parts(obj: GroupedObj, rules: tuple[Rule, ...], name: str = "") -> np.n
 def model_parts(name: str, folder: Path | None = None, resolution: int = RESOLUTION,
                 models: Mapping[str, Model] | None = None) -> dict[str, "trimesh.Trimesh"]:
     """{part: closed voxel-cube mesh} of one model on ``make_exemplar``'s grid at ``resolution``."""
-    from stylesets.readers.monastery import cube_part_meshes, labelled_fill, lattice
 
     model = (MODELS if models is None else models)[name]
     obj = read_model(catalogue_path(model.catalogue, folder), model.model)

@@ -356,9 +356,7 @@ def test_export_asset_writes_meshes_and_preview_together(tmp_path, coloured_mesh
     def broken_preview(mesh, size_px):
         raise MemoryError("out of memory while rendering")
 
-    import geometry.preview
-
-    monkeypatch.setattr(geometry.preview, "preview_png", broken_preview)
+    monkeypatch.setattr(export_mod, "preview_png", broken_preview)
     with pytest.raises(ExportError, match="could not encode PNG"):
         export_asset(coloured_mesh, tmp_path / "again", "crate", [ExportFormat.GLB], Pivot.SOURCE, preview_size_px=64)
     assert os.listdir(tmp_path / "again") == []

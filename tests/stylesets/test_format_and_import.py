@@ -455,10 +455,11 @@ def test_cli_import_show_list(user_folder, tmp_path):
 
 def test_cli_build_a_builtin_set(monkeypatch, tmp_path):
     """``styles build`` on a small stand-in for a built-in set, voxelized at 32³ instead of 256³."""
+    from cli import styles as styles_cli
     from stylesets import registry as builtin
 
     monkeypatch.setitem(builtin.BUILTIN_SETS, "stools", (FURNITURE, _stool_specs))
-    monkeypatch.setattr(exemplars, "build_set", partial(build_set, resolution=R))
+    monkeypatch.setattr(styles_cli, "build_set", partial(build_set, resolution=R))
     styles = tmp_path / "styles"
     code, out, err = _cli(["build", "stools", "--jobs", 2], styles)
     assert code == 0, err
