@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pipeline.export import ENCODERS, export_mesh  # noqa: E402
 from core.grid import ISO_LEVEL, FineGrid  # noqa: E402
-from pipeline.mesh import MeshSettings, _crop_padded, _decimate, _marching_cubes, mesh_fine_grid  # noqa: E402
+from pipeline.mesh import MeshSettings, crop_padded, decimate, marching_cubes, mesh_fine_grid  # noqa: E402
 from geometry.preview import render_preview  # noqa: E402
 from core.recipe import ExportFormat, Pivot  # noqa: E402
 
@@ -82,12 +82,12 @@ def main() -> None:
     mesh_fine_grid(chair_field(32), MeshSettings(max_triangles=1000))
 
     rows: list[tuple[str, float, str]] = []
-    t, (crop, start) = timed(lambda: _crop_padded(fine.occupancy, ISO_LEVEL), r)
+    t, (crop, start) = timed(lambda: crop_padded(fine.occupancy, ISO_LEVEL), r)
     rows.append(("bbox crop + pad", t, f"crop {crop.shape}"))
-    t, (verts, faces) = timed(lambda: _marching_cubes(crop, ISO_LEVEL), r)
+    t, (verts, faces) = timed(lambda: marching_cubes(crop, ISO_LEVEL), r)
     rows.append(("marching cubes (lewiner)", t, f"{len(faces):,} faces"))
     for target in (150_000, 20_000):
-        t, (_v, f) = timed(lambda: _decimate(verts, faces, target), r)
+        t, (_v, f) = timed(lambda: decimate(verts, faces, target), r)
         rows.append((f"decimate → {target:,}", t, f"{len(f):,} faces"))
     t, full = timed(lambda: mesh_fine_grid(fine, MeshSettings(max_triangles=None)), r)
     rows.append(("mesh_fine_grid, no decimation", t, f"{len(full.faces):,} faces, watertight={full.is_watertight}"))

@@ -15,9 +15,10 @@ from rich.table import Table
 
 from cli.console import ExitCode, fail, stderr
 from core.errors import DecollageError, UsageError
-from core.recipe import load_recipe
+from core.recipe_loader import load_recipe
 from pipeline.build import build_recipe, check_recipe, plan_build
-from pipeline.executors import make_executor
+from pipeline.executors import ExecutorKind, make_executor
+from pipeline.report import AssetStatus
 
 
 def build_command(
@@ -26,7 +27,8 @@ def build_command(
     only: Optional[list[str]] = typer.Option(None, "--only", help="Build only assets with these names."),
     detailizer: Optional[str] = typer.Option(None, "--detailizer", help="Override every asset's detailizer."),
     jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="Worker processes on this machine."),
-    executor: str = typer.Option("local", "--executor", help="local, or dask (a cluster; needs --address)."),
+    executor: ExecutorKind = typer.Option(ExecutorKind.LOCAL, "--executor",
+                                          help="local, or dask (a cluster; needs --address)."),
     address: Optional[str] = typer.Option(None, "--address", help="Cluster scheduler, e.g. tcp://host:8786."),
     gpus_per_task: float = typer.Option(0.0, "--gpus-per-task", min=0.0,
                                         help="GPUs a cluster task asks for (Dask resource 'GPU')."),
@@ -78,10 +80,10 @@ def build_command(
 
         Console(highlight=False).print(_summary_table(reports, out))
         cached = sum(r.cached for r in reports)
-        built = sum(r.status == "built" and not r.cached for r in reports)
+        built = sum(r.status == AssetStatus.BUILT and not r.cached for r in reports)
         stderr().print(f"{built} built, {cached} up to date (cached), "
                         f"{sum(r.status == 'failed' for r in reports)} failed in {wall:.1f} s")
-    failed = [r for r in reports if r.status != "built"]
+    failed = [r for r in reports if r.status != AssetStatus.BUILT]
     if failed:
         stderr().print(f"[red]{len(failed)} of {len(reports)} assets failed[/]; "
                         f"the others are in {out} (see manifest.json)")
@@ -122,9 +124,9 @@ def _json_summary(reports, recipe: Path, out: Path, wall_s: float) -> dict:
         "wall_time_s": round(wall_s, 3),
         "summary": {
             "assets": len(reports),
-            "built": sum(r.status == "built" and not r.cached for r in reports),
+            "built": sum(r.status == AssetStatus.BUILT and not r.cached for r in reports),
             "cached": sum(r.cached for r in reports),
-            "failed": sum(r.status == "failed" for r in reports),
+            "failed": sum(r.status == AssetStatus.FAILED for r in reports),
         },
         "assets": [{"name": r.name, "status": "cached" if r.cached else r.status,
                     "outputs": {k: str(out / v["path"]) for k, v in r.outputs.items()},
@@ -178,16 +180,16 @@ class _ConsoleProgress:
         if not self.quiet:
             if report.cached:
                 self.console.print(f"[dim]cached[/] {report.name}")
-            elif report.status == "built":
+            elif report.status == AssetStatus.BUILT:
                 self.console.print(f"[green]built[/]  {report.name} ({sum(report.timings_s.values()):.1f} s)")
             else:
                 self.console.print(f"[red]failed[/] {report.name}: {report.error}")
             if not report.cached:
                 for w in report.warnings:
                     self.console.print(f"  [yellow]warning:[/] {w}")
-        elif report.status == "failed":
+        elif report.status == AssetStatus.FAILED:
             self.console.print(f"[red]failed[/] {report.name}: {report.error}")
-        if report.status == "failed" and not self.keep_going:
+        if report.status == AssetStatus.FAILED and not self.keep_going:
             raise _Stopped(list(self.reports))
 
 
@@ -203,7 +205,7 @@ def _summary_table(reports, out_dir: Path):
             size = "×".join(f"{b - a:.2f}" for a, b in zip(lo, hi))
         else:
             size = ""
-        table.add_row(r.name, "built" if r.status == "built" else "[red]failed[/]",
+        table.add_row(r.name, "built" if r.status == AssetStatus.BUILT else "[red]failed[/]",
                       str(mesh.get("triangles", "")), size, ", ".join(sorted(r.outputs)),
                       f"{sum(r.timings_s.values()):.1f}")
     return table

@@ -13,7 +13,7 @@ from cli.console import fail
 from core import __version__
 from core.errors import DecollageError
 from core.files import write_bytes_atomic
-from core.recipe import json_schema
+from core.recipe_loader import json_schema
 
 
 def schema_command(out: Optional[Path] = typer.Option(None, "--out", "-o", help="Write to a file instead of stdout.")) -> None:

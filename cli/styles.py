@@ -2,7 +2,7 @@
 
 Role: the ``styles`` sub-app of ``cli.app`` (registered there with
 ``app.add_typer``). Tables go to stdout (rich), progress lines to stderr;
-errors are ``DecollageError``s mapped to exit code 2 by ``cli.app._fail``
+errors are ``DecollageError``s mapped to exit code 2 by ``cli.console.fail``
 (one line, no traceback, nothing half-written: set files and sheets are
 written atomically, and only after every exemplar voxelized).
 

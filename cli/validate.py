@@ -8,7 +8,7 @@ import typer
 
 from cli.console import fail
 from core.errors import DecollageError
-from core.recipe import load_recipe
+from core.recipe_loader import load_recipe
 from pipeline.build import check_recipe
 
 

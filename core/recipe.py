@@ -11,27 +11,20 @@ A recipe is YAML::
           - {parts: ["glyph_*"], part: body, style: brick}
           - {band: top, part: roof, style: tiles}
 
-Loading uses ``yaml.SafeLoader`` (plus a duplicate-key check), then strict
-JSON-mode validation: unknown keys are errors, strings are never coerced to
-numbers, lists are accepted where tuples are meant. Any problem raises
-``RecipeError`` naming the file and the field path.
+Validation is strict (JSON mode): unknown keys are errors, strings are never
+coerced to numbers, lists are accepted where tuples are meant. Reading a recipe
+file (YAML, defaults, variants, errors naming the file and the field path) is
+``core/recipe_loader.py``.
 """
 
 from __future__ import annotations
 
-import json
-import re
 from enum import Enum
-from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Literal, Optional, Union
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
 from core.detailizer import DEFAULT_DETAILIZER
-from core.errors import RecipeError
-from core.files import resolve_relative
-from core.variants import expand_assets
 
 SCHEMA_VERSION = 1
 
@@ -124,6 +117,14 @@ class CollisionKind(str, Enum):
     NONE = "none"
     HULL = "hull"  # convex hull of LOD0
     BOXES = "boxes"  # boxes merged from the coarse grid's occupied cells
+
+
+class Device(str, Enum):
+    """Where a learned detailizer runs: the GPU when there is one (auto), or always the CPU / a CUDA GPU."""
+
+    AUTO = "auto"
+    CPU = "cpu"
+    CUDA = "cuda"
 
 
 class Pivot(str, Enum):
@@ -374,7 +375,7 @@ class DetailizeSettings(_Strict):
                             "unless 'checkpoint' names others) or 'upsample' (the non-learned baseline).")
     checkpoint: Optional[str] = Field(None, description="Checkpoint file for a learned detailizer.")
     seed: int = Field(0, ge=0)
-    device: Literal["auto", "cpu", "cuda"] = "auto"
+    device: Device = Device.AUTO
 
 
 class ExportSettings(_Strict):
@@ -469,210 +470,3 @@ class Recipe(_Strict):
 
 
 # --------------------------------------------------------------------------- loading
-
-
-class LoadedRecipe:
-    """A validated recipe plus where it came from (for relative paths and messages)."""
-
-    def __init__(self, recipe: Recipe, path: Path, text: str) -> None:
-        self.recipe = recipe
-        self.path = path
-        self.base_dir = path.parent
-        self.text = text
-
-    def where(self, index: int) -> tuple[str, str | None]:
-        """(field path of expanded asset ``index`` in the recipe file, its variant name or None)."""
-        recipe_index, variant = self.recipe._origin[index]
-        return f"assets[{recipe_index}]", variant
-
-    def resolve(self, relative: str) -> Path:
-        """A path from the recipe, resolved against the recipe's folder."""
-        return resolve_relative(relative, self.base_dir)
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that refuses duplicate mapping keys (PyYAML silently keeps the last)."""
-
-
-def _construct_mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
-    seen: dict[Any, Any] = {}
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=deep)
-        if key in seen:
-            raise yaml.constructor.ConstructorError(
-                None, None, f"duplicate key {key!r}", key_node.start_mark
-            )
-        seen[key] = loader.construct_object(value_node, deep=deep)
-    return seen
-
-
-_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-
-def format_loc(loc: tuple) -> str:
-    """``('assets', 2, 'regions', 0, 'style')`` → ``assets[2].regions[0].style``."""
-    out = ""
-    for item in loc:
-        if isinstance(item, int):
-            out += f"[{item}]"
-        else:
-            out += ("." if out else "") + str(item)
-    return out
-
-
-_TAGGED_UNION_MEMBERS = {"text", "cad", "mesh", "voxels", "box", "cylinder", "sphere", "cone", "torus",
-                         "extrude", "union", "difference", "intersection"}
-
-
-def _clean_loc(loc: tuple) -> tuple:
-    """Drop pydantic's union-member tags (``source.text.font`` → ``source.font``)."""
-    cleaned = []
-    for i, item in enumerate(loc):
-        prev = loc[i - 1] if i else None
-        if isinstance(item, str) and item in _TAGGED_UNION_MEMBERS and prev in ("source", "parts", "children") or (
-            isinstance(item, str) and item in _TAGGED_UNION_MEMBERS and isinstance(prev, int)
-        ):
-            continue
-        if isinstance(item, str) and item.startswith(("function-", "literal[", "list[")):
-            continue
-        cleaned.append(item)
-    return tuple(cleaned)
-
-
-def _hint_for(err: dict) -> str | None:
-    kind = err.get("type", "")
-    if kind == "extra_forbidden":
-        return "remove it or check its spelling; 'decollage schema' lists every allowed key"
-    if kind == "missing":
-        return "add this field"
-    if kind == "union_tag_invalid":
-        return None
-    if kind.endswith("_type") or kind.endswith("_parsing"):
-        return "check the value's type"
-    return None
-
-
-def _message_for(err: dict) -> str:
-    kind = err.get("type", "")
-    msg = err.get("msg", "invalid value")
-    if kind == "extra_forbidden":
-        return "unknown key"
-    if kind == "union_tag_invalid":
-        ctx = err.get("ctx", {})
-        return f"unknown {ctx.get('discriminator', 'kind').strip(chr(39))} {ctx.get('tag')!r} (known: {ctx.get('expected_tags')})"
-    if kind == "union_tag_not_found":
-        ctx = err.get("ctx", {})
-        return f"missing {ctx.get('discriminator', 'kind').strip(chr(39))}"
-    msg = re.sub(r"^(Value error|Assertion failed), ", "", msg)
-    if "input" in err and kind not in ("missing",) and not isinstance(err["input"], (dict, list)):
-        msg += f" (got {err['input']!r})"
-    return msg
-
-
-def validation_error(exc: ValidationError, path: Path) -> RecipeError:
-    """Turn pydantic's errors into one RecipeError naming the first problem (and how many more)."""
-    errors = exc.errors()
-    first = errors[0]
-    field = format_loc(_clean_loc(tuple(first["loc"]))) or "(top level)"
-    message = _message_for(first)
-    if len(errors) > 1:
-        message += f" [+{len(errors) - 1} more problem(s); fix this one and validate again]"
-    return RecipeError(message, file=path, field=field, hint=_hint_for(first))
-
-
-def parse_recipe(text: str, path: Path) -> Recipe:
-    """Parse and validate recipe text; ``path`` is used for messages only."""
-    try:
-        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - SafeLoader subclass
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise RecipeError(f"not valid YAML: {problem}", file=path, field=where,
-                          hint="check indentation, colons and quotes") from None
-    if data is None:
-        raise RecipeError("the file is empty", file=path, hint="a recipe needs 'version: 1' and a list of 'assets'")
-    if not isinstance(data, dict):
-        raise RecipeError(f"the top level is a {type(data).__name__}, not a mapping", file=path,
-                          hint="start the file with 'version: 1' and 'assets:'")
-    try:
-        as_json = json.dumps(data)
-    except (TypeError, ValueError) as exc:
-        raise RecipeError(f"contains a value that is not plain data: {exc}", file=path,
-                          hint="quote dates and other special values") from None
-    defaults = data.get("defaults", {})
-    try:
-        Defaults.model_validate_json(json.dumps(defaults), strict=True)
-    except ValidationError as exc:
-        err = validation_error(exc, path)
-        err.field = "defaults" + ("." + err.field if err.field != "(top level)" else "")
-        raise err from None
-    origin = None
-    if isinstance(defaults, dict) and isinstance(data.get("assets"), list):
-
-        try:
-            assets, origin = expand_assets(data["assets"])
-        except RecipeError as exc:
-            raise exc.located(file=path) from None
-        data = dict(data)
-        data["assets"] = [_with_defaults(a, defaults) for a in assets]
-        as_json = json.dumps(data)
-    try:
-        recipe = Recipe.model_validate_json(as_json, strict=True)
-    except ValidationError as exc:
-        raise _at_recipe_index(validation_error(exc, path), origin) from None
-    recipe._origin = origin or [(i, None) for i in range(len(recipe.assets))]
-    return recipe
-
-
-def _at_recipe_index(err: RecipeError, origin: list[tuple[int, str | None]] | None) -> RecipeError:
-    """Point an error in an expanded asset back at the recipe's own asset (and name the variant)."""
-    match = re.match(r"^assets\[(\d+)\](.*)$", err.field or "")
-    if origin is None or not match or int(match.group(1)) >= len(origin):
-        return err
-    index, variant = origin[int(match.group(1))]
-    err.field = f"assets[{index}]{match.group(2)}"
-    if variant:
-        err.message += f" (in variant {variant})"
-    return err
-
-
-def _with_defaults(asset: Any, defaults: dict) -> Any:
-    """Merge ``defaults.{grid,detailize,export}`` under an asset's own settings (asset wins)."""
-    if not isinstance(asset, dict):
-        return asset
-    merged = dict(asset)
-    for key in ("grid", "detailize", "export"):
-        base = defaults.get(key) or {}
-        own = asset.get(key)
-        if isinstance(own, dict) or own is None:
-            merged[key] = {**base, **(own or {})}
-    return merged
-
-
-def load_recipe(path: str | Path) -> LoadedRecipe:
-    """Read, parse and validate a recipe file. Raises RecipeError."""
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise RecipeError("file not found", file=path, hint="check the path") from None
-    except IsADirectoryError:
-        raise RecipeError("is a directory, not a recipe file", file=path) from None
-    except OSError as exc:
-        raise RecipeError(f"cannot read: {exc.strerror}", file=path) from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        raise RecipeError("not UTF-8 text (is this a binary file?)", file=path,
-                          hint="a recipe is a YAML text file") from None
-    recipe = parse_recipe(text, path)
-    return LoadedRecipe(recipe, path, text)
-
-
-def json_schema() -> dict:
-    """The JSON Schema of recipe version 1, for editor autocomplete."""
-    schema = Recipe.model_json_schema(by_alias=True)
-    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
-    schema["title"] = "decollage recipe"
-    return schema

@@ -137,7 +137,7 @@ def bench_assets(recipes: Sequence[Path], repeats: int = 3,
                  progress: Callable[[str], None] | None = None) -> list[dict]:
     """End-to-end build time per asset (source → GLB + preview): median of ``repeats`` after a warm-up."""
     from pipeline.build import Progress, build_asset, check_recipe
-    from core.recipe import load_recipe
+    from core.recipe_loader import load_recipe
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

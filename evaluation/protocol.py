@@ -240,7 +240,7 @@ def crop_with_margin(labels: np.ndarray, margin: int = 1) -> np.ndarray:
 def recipe_contents(recipe_path: Path, parts: tuple[str, ...],
                     progress: Callable[[str], None] | None = None) -> list[tuple[str, str, dict, np.ndarray]]:
     """(id, kind, description, coarse labels) of every asset of a contents recipe, voxelized by the pipeline."""
-    from core.recipe import load_recipe
+    from core.recipe_loader import load_recipe
     from pipeline.regions import apply_regions
     from geometry.voxelize import voxelize
     from sources import load_source

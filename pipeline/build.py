@@ -17,13 +17,14 @@ import time
 import traceback
 from collections.abc import Callable
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from core.detailizer import effective_checkpoint, get_detailizer
 from core.errors import DecollageError, RecipeError
 from core.files import ensure_writable_dir, sha256_file
-from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset, LoadedRecipe, parse_recipe
+from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset
+from core.recipe_loader import LoadedRecipe, parse_recipe
 from core.structure import strict_loose_iou
 from geometry.voxelize import voxelize
 from pipeline.cache import asset_key, remove_stale_temporaries, valid_record, write_record
@@ -33,40 +34,8 @@ from pipeline.export import apply_pivot, export_asset
 from pipeline.manifest import write_manifest
 from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
 from pipeline.regions import apply_regions
+from pipeline.report import AssetReport, AssetStatus
 from sources import load_source
-
-
-@dataclass
-class AssetReport:
-    """What happened to one asset; ``entry()`` is its manifest entry."""
-
-    name: str
-    index: int
-    status: str = "pending"  # built | failed
-    cached: bool = False
-    error: str | None = None
-    warnings: list[str] = field(default_factory=list)
-    timings_s: dict[str, float] = field(default_factory=dict)
-    inputs: dict = field(default_factory=dict)
-    outputs: dict[str, dict] = field(default_factory=dict)
-    info: dict = field(default_factory=dict)
-    traceback: str | None = None
-
-    def entry(self) -> dict:
-        """The manifest entry (plain JSON); a cached asset's is the one recorded when it was built."""
-        entry = {"name": self.name, "status": self.status, "inputs": self.inputs, "outputs": self.outputs,
-                 **self.info, "warnings": self.warnings, "timings_s": self.timings_s}
-        if self.error:
-            entry["error"] = self.error
-        return entry
-
-    @classmethod
-    def from_entry(cls, index: int, entry: dict) -> "AssetReport":
-        known = {"name", "status", "inputs", "outputs", "warnings", "timings_s", "error"}
-        return cls(name=entry["name"], index=index, status=entry["status"], cached=True,
-                   error=entry.get("error"), warnings=list(entry.get("warnings", [])),
-                   timings_s=dict(entry.get("timings_s", {})), inputs=entry.get("inputs", {}),
-                   outputs=entry.get("outputs", {}), info={k: v for k, v in entry.items() if k not in known})
 
 
 class Progress:
@@ -187,15 +156,15 @@ def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progr
     where, _ = loaded.where(index)
     try:
         _build(asset, loaded, index, out_dir, progress, report, detailizer_override)
-        report.status = "built"
+        report.status = AssetStatus.BUILT
     except DecollageError as exc:
-        report.status = "failed"
+        report.status = AssetStatus.FAILED
         report.error = _locate(exc, loaded, index).one_line()
     except MemoryError:
-        report.status = "failed"
+        report.status = AssetStatus.FAILED
         report.error = f"{loaded.path}: {where}: ran out of memory (lower grid.resolution or max_cells)"
     except Exception as exc:  # an internal bug must not take the other assets down
-        report.status = "failed"
+        report.status = AssetStatus.FAILED
         report.error = (f"{loaded.path}: {where}: internal error {type(exc).__name__}: {exc} "
                         "(please report it; run with --debug for the traceback)")
         report.traceback = traceback.format_exc()
@@ -297,7 +266,7 @@ def build_task(recipe_text: str, recipe_path: str, index: int, key: str, out_dir
         _LOADED[cache_key] = LoadedRecipe(parse_recipe(recipe_text, path), path, recipe_text)
     out = Path(out_dir)
     report = build_asset(_LOADED[cache_key], index, out, progress or Progress(), detailizer_override)
-    if report.status == "built":
+    if report.status == AssetStatus.BUILT:
         write_record(out, report.name, key, report.entry())
     return report
 

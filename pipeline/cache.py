@@ -19,6 +19,7 @@ from pathlib import Path
 
 from core import __version__
 from core.files import sha256_file, write_bytes_atomic
+from pipeline.report import AssetStatus
 
 RECORD_DIR = ".decollage"
 RECORD_FORMAT = 1
@@ -82,7 +83,7 @@ def valid_record(out_dir: Path, name: str, key: str) -> dict | None:
         return None
     entry = record.get("entry") or {}
     outputs = entry.get("outputs") or {}
-    if entry.get("status") != "built" or not outputs:
+    if entry.get("status") != AssetStatus.BUILT or not outputs:
         return None
     for out in outputs.values():
         file = out_dir / out["path"]

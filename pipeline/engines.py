@@ -34,7 +34,7 @@ import numpy as np
 from core.errors import MeshingError
 from core.grid import FineGrid, LabeledGrid
 from core.recipe import CollisionKind, EngineProfile
-from pipeline.mesh import _decimate, vertex_style_colors
+from pipeline.mesh import decimate, vertex_style_colors
 
 if TYPE_CHECKING:
     import trimesh
@@ -76,7 +76,7 @@ def make_lods(lod0: "trimesh.Trimesh", fine: "FineGrid", lods: list | None) -> l
         if target >= len(lod0.faces):
             mesh = lod0.copy()
         else:
-            verts, faces = _decimate(np.asarray(lod0.vertices), np.asarray(lod0.faces), target)
+            verts, faces = decimate(np.asarray(lod0.vertices), np.asarray(lod0.faces), target)
             mesh = trimesh.Trimesh(verts, faces, process=True)
             if len(lod0.visual.vertex_colors):
                 mesh.visual.vertex_colors = vertex_style_colors(fine, mesh)

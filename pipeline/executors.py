@@ -22,6 +22,7 @@ from __future__ import annotations
 import importlib
 import os
 from collections.abc import Callable, Sequence
+from enum import StrEnum
 
 from core.errors import UsageError
 
@@ -140,14 +141,21 @@ class DaskExecutor:
             client.close()
 
 
-def make_executor(kind: str, jobs: int, address: str | None, gpus_per_task: float, progress=None):
+class ExecutorKind(StrEnum):
+    """Where a build runs (``--executor``)."""
+
+    LOCAL = "local"  # this machine: in process (--jobs 1) or worker processes
+    DASK = "dask"  # a Dask cluster (needs --address)
+
+
+def make_executor(kind: ExecutorKind, jobs: int, address: str | None, gpus_per_task: float, progress=None):
     """The executor for the CLI's ``--executor``/``--jobs``/``--address`` options."""
-    if kind == "local":
+    if kind == ExecutorKind.LOCAL:
         if gpus_per_task:
             raise UsageError("--gpus-per-task is a cluster resource request; it needs --executor dask",
                              field="--gpus-per-task",
                              hint="on one machine the recipe's detailize.device picks the GPU (auto, cpu, cuda)")
         return LocalExecutor(progress) if jobs == 1 else ProcessExecutor(jobs)
-    if kind == "dask":
+    if kind == ExecutorKind.DASK:
         return DaskExecutor(address, gpus_per_task)
     raise UsageError(f"unknown executor {kind!r} (known: local, dask)")

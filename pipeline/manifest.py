@@ -16,6 +16,7 @@ from pathlib import Path
 from core import __version__
 from core.files import sha256_file, write_bytes_atomic
 from core.grid import ISO_LEVEL
+from pipeline.report import AssetStatus
 
 MANIFEST_NAME = "manifest.json"
 MANIFEST_FORMAT = 1
@@ -34,8 +35,8 @@ def manifest_dict(loaded, reports) -> dict:
         "iso_level": ISO_LEVEL,
         "summary": {
             "assets": len(reports),
-            "built": sum(r.status == "built" for r in reports),
-            "failed": sum(r.status == "failed" for r in reports),
+            "built": sum(r.status == AssetStatus.BUILT for r in reports),
+            "failed": sum(r.status == AssetStatus.FAILED for r in reports),
         },
         "assets": [r.entry() for r in reports],
     }

@@ -93,8 +93,8 @@ def mesh_fine_grid(fine: FineGrid, settings: MeshSettings | None = None, iso: fl
     import trimesh
 
     settings = settings or MeshSettings()
-    crop, start = _crop_padded(fine.occupancy, iso)
-    verts, faces = _marching_cubes(crop, iso)
+    crop, start = crop_padded(fine.occupancy, iso)
+    verts, faces = marching_cubes(crop, iso)
     # Back to grid-voxel units (still unscaled): undo the pad, add the crop start.
     verts += start - 1
 
@@ -106,7 +106,7 @@ def mesh_fine_grid(fine: FineGrid, settings: MeshSettings | None = None, iso: fl
         verts, faces = np.asarray(smooth.vertices), np.asarray(smooth.faces)
 
     if settings.max_triangles is not None and len(faces) > settings.max_triangles:
-        verts, faces = _decimate(verts, faces, settings.max_triangles)
+        verts, faces = decimate(verts, faces, settings.max_triangles)
 
     origin = np.asarray(fine.origin_m, dtype=np.float64)
     verts_m = origin + (verts + 0.5) * float(fine.voxel_size_m)
@@ -123,7 +123,7 @@ def mesh_fine_grid(fine: FineGrid, settings: MeshSettings | None = None, iso: fl
     return mesh
 
 
-def _crop_padded(occupancy: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarray]:
+def crop_padded(occupancy: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarray]:
     """Crop to the inside voxels' bbox (+1 margin) and pad with one voxel of zeros.
 
     Returns the padded float32 crop and the (3,) grid index of the crop's first
@@ -151,7 +151,7 @@ def _crop_padded(occupancy: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndar
     return np.pad(crop, 1, mode="constant", constant_values=0.0), np.asarray(lo, dtype=np.float64)
 
 
-def _marching_cubes(volume: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarray]:
+def marching_cubes(volume: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarray]:
     """(V, 3) float64 sample-index vertices and (F, 3) int64 outward-wound faces."""
     from skimage import measure
 
@@ -166,7 +166,7 @@ def _marching_cubes(volume: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndar
     return verts.astype(np.float64), np.ascontiguousarray(faces[:, ::-1], dtype=np.int64)
 
 
-def _decimate(verts: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
+def decimate(verts: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
     """Quadric decimation to at most ``target`` faces (voxel units in, voxel units out)."""
     import fast_simplification
 

@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from core.errors import RecipeError
-from core.recipe import ExportFormat, FitMode, json_schema, load_recipe, parse_recipe
+from core.recipe import ExportFormat, FitMode
+from core.recipe_loader import json_schema, load_recipe, parse_recipe
 
 GOOD = """
 version: 1

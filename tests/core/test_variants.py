@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from core.errors import RecipeError
-from core.recipe import parse_recipe
+from core.recipe_loader import parse_recipe
 
 MATRIX = """
 version: 1
