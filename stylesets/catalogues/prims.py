@@ -173,3 +173,54 @@ def merge(meshes: Iterable["trimesh.Trimesh"]) -> "trimesh.Trimesh":
     vertices = np.concatenate([np.asarray(m.vertices, float) for m in meshes])
     faces = np.concatenate([np.asarray(m.faces, np.int64) + o for m, o in zip(meshes, offsets)])
     return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+
+
+# --------------------------------------------------------------------------- oriented pieces
+
+
+def oriented_frame(direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Orthonormal (d, side, normal) frame with d along ``direction``."""
+    d = np.asarray(direction, float)
+    d = d / np.linalg.norm(d)
+    ref = np.array([0.0, 1.0, 0.0]) if abs(d[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    s = np.cross(d, ref)
+    s /= np.linalg.norm(s)
+    n = np.cross(s, d)
+    return d, s, n
+
+
+def oriented_box(center, u, v, su: float, sv: float, sn: float):
+    """Oriented box: ``su`` along unit-ish vector ``u``, ``sv`` along ``v``, ``sn`` along u×v."""
+    c = np.asarray(center, float)
+    u = np.asarray(u, float) / np.linalg.norm(u)
+    v = np.asarray(v, float)
+    v = v - u * (v @ u)
+    v /= np.linalg.norm(v)
+    n = np.cross(u, v)
+    pts = [c + a * su / 2 * u + b * sv / 2 * v + e * sn / 2 * n
+           for a in (-1, 1) for b in (-1, 1) for e in (-1, 1)]
+    return hull(np.array(pts))
+
+
+def lens_leaf(base, direction, length: float, width: float, thick: float, curl: float = 0.0):
+    """Lens-shaped leaf (convex hull) from ``base`` along ``direction``; ``curl`` lifts its edges (cupped)."""
+    d, s, n = oriented_frame(direction)
+    b = np.asarray(base, float)
+    pts = []
+    for i in range(9):
+        t = i / 8
+        w = width / 2 * math.sin(math.pi * t) ** 0.8
+        for side in (-1, 1):
+            p = b + d * length * t + s * side * w + n * curl * w
+            pts += [p + n * thick / 2, p - n * thick / 2]
+    return hull(np.array(pts))
+
+
+def square_lathe(profile, base=(0, 0, 0)):
+    """Square-plan turned solid: ``profile`` radii are half-widths of the square (flared roofs, plinths)."""
+    import trimesh
+
+    m = lathe([(r * math.sqrt(2), h) for r, h in profile], base=(0, 0, 0), sections=4)
+    m.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 4, [0, 1, 0]))
+    m.apply_translation(np.asarray(base, float))
+    return m
