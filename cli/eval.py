@@ -1,4 +1,4 @@
-"""``decollage eval``: the fixed evaluation protocol through a detailizer → eval.json + eval.md (issue 5).
+"""``decollage eval``: the fixed evaluation protocol through a detailizer → eval.json + eval.md.
 
 Role: resolve the detailizer (``--checkpoint`` for a trained model, or
 ``--detailizer upsample|decollage``), load and check the protocol

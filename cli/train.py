@@ -1,4 +1,4 @@
-"""``decollage train``: train the DECOLLAGE detailizer on a style set (issue 4).
+"""``decollage train``: train the DECOLLAGE detailizer on a style set.
 
 Role: resolve the style set (a built-in name, built on first use and cached, or a
 ``.npz`` set file), build the model config, run ``model.train.train`` with a

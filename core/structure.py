@@ -1,6 +1,6 @@
 """Structure kept by a detailizer: Strict-IOU and Loose-IOU of a fine output against its coarse input.
 
-The paper's definition (``reference/method.md`` §5): max-pool the binarised
+The paper's definition (DECOR-GAN's evaluation code, used by DECOLLAGE): max-pool the binarised
 fine output by the total upsampling factor (kernel = stride) and compare the
 result D with the coarse input C. Used by the content flow (every asset's
 manifest) and by the evaluation.

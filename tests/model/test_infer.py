@@ -218,7 +218,7 @@ def test_shipped_model_loads_keeps_the_coarse_shape_and_adds_detail():
     inside = fine.occupancy >= 0.4
     pooled = inside.reshape(10, 16, 12, 16, 10, 16).any(axis=(1, 3, 5))
     strict = (pooled & occ).sum() / (pooled | occ).sum()
-    assert strict >= 0.7  # the coarse structure is kept (issue 4's bar for the example assets)
+    assert strict >= 0.7  # the coarse structure is kept (the bar for the example assets)
     # not the upsample baseline: a blurred, thresholded block has almost no fine surface variation
     base = pipeline_detailize.get_detailizer("upsample").detailize(grid).occupancy >= 0.4
     assert (inside != base).mean() > 0.005

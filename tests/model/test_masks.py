@@ -53,7 +53,7 @@ def test_fill_nearest_copies_from_closest_occupied_cell():
 
 
 def test_crop_table_of_paper_discriminators_matches_method_md():
-    # method.md §1.3: level 32: ×2, crop 3; 64: ×4, 4; 128 (D out 64): ×4, 4; 256 (D out 128): ×8, 4.
+    # DECOLLAGE's D-mask alignment: level 32: ×2, crop 3; 64: ×4, 4; 128 (D out 64): ×4, 4; 256 (D out 128): ×8, 4.
     cfg = ModelConfig.paper(5, 32)
     ups = [2 ** (j + 1) // d.stride() for j, d in enumerate(cfg.discriminators)]
     crops = [d.mask_offset() for d in cfg.discriminators]
