@@ -173,6 +173,7 @@ def test_schema_command_prints_json_schema():
     assert "assets" in schema["properties"]
 
 
+@pytest.mark.e2e  # a subprocess CLI run
 def test_console_script_entry_point_reports_errors_without_traceback(write_recipe):
     recipe = write_recipe("- just a list")
     proc = subprocess.run([sys.executable, "-m", "cli.app", "validate", str(recipe)],

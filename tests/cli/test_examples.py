@@ -13,6 +13,8 @@ from typer.testing import CliRunner
 
 from cli.app import app
 
+pytestmark = pytest.mark.e2e  # builds the showcase and runs the glTF validator
+
 RECIPES = Path(__file__).resolve().parents[2] / "recipes"
 
 

@@ -98,6 +98,7 @@ def _tiny_checkpoint(path: Path, styles: tuple[str, ...]) -> Path:
 # --------------------------------------------------------------------------- the shipped protocol
 
 
+@pytest.mark.e2e  # builds the 256³ things set
 def test_shipped_protocol_is_20_contents_by_16_styles():
     from stylesets.registry import builtin_set
 
@@ -118,6 +119,7 @@ def test_shipped_protocol_is_20_contents_by_16_styles():
     assert set(single) == set(p.styles) and set(single.values()) == {8}
 
 
+@pytest.mark.e2e  # builds the 256³ things set
 def test_output_grid_carries_the_assignment():
     p = load_protocol(DEFAULT_PROTOCOL)
     o = next(o for o in p.outputs if o.mixed)
@@ -251,6 +253,7 @@ def test_doc_sections_are_replaced_in_place(tmp_path):
     assert text.count("<!-- decollage:bench:begin -->") == 1 and text.count("<!-- decollage:eval:upsample:end -->") == 1
 
 
+@pytest.mark.e2e  # a benchmark child process
 def test_bench_measures_in_a_child_and_formats(tmp_path):
     from evaluation.evaluate import machine_info
     from cli.bench import bench_markdown

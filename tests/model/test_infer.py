@@ -199,6 +199,7 @@ def test_large_crops_run_blockwise_with_the_dense_result(ckpt_path, monkeypatch)
     np.testing.assert_allclose(blocks, dense, atol=1e-5)
 
 
+@pytest.mark.e2e  # the shipped model at 256³
 def test_shipped_model_loads_keeps_the_coarse_shape_and_adds_detail():
     """The committed weights: the default detailizer, the 'things' styles, and a kept coarse structure."""
     assert DEFAULT_CHECKPOINT.is_file() and DEFAULT_CHECKPOINT.stat().st_size < 30 * 2**20

@@ -16,6 +16,8 @@ from typer.testing import CliRunner
 
 from cli.app import app
 
+pytestmark = pytest.mark.e2e  # whole batch builds, subprocess CLI runs
+
 REPO = Path(__file__).resolve().parents[2]
 
 BATCH = """

@@ -14,6 +14,8 @@ from typer.testing import CliRunner
 from cli.app import app
 from pipeline.engines import _merge_boxes, lod_targets
 
+pytestmark = pytest.mark.e2e  # whole builds per engine profile and the glTF validator
+
 REPO = Path(__file__).resolve().parents[2]
 
 RECIPE = """
