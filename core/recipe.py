@@ -127,6 +127,13 @@ class Device(str, Enum):
     CUDA = "cuda"
 
 
+class VoxExport(str, Enum):
+    """Which grid of an asset ``export.vox`` writes as a MagicaVoxel file (pipeline/vox_export.py)."""
+
+    COARSE = "coarse"  # the labelled coarse grid: one palette index per (part, style), recorded in the manifest
+    FINE = "fine"  # the detailed grid, downsampled to at most 256 per axis, one palette index per style
+
+
 class Pivot(str, Enum):
     """Where the exported mesh's origin sits."""
 
@@ -299,7 +306,58 @@ class VoxelsSource(_Strict):
     voxel_size_m: PositiveFloat = Field(0.05, description="Edge of one input voxel in metres.")
 
 
-SourceSpec = Annotated[Union[TextSource, CadSource, MeshSource, VoxelsSource], Field(discriminator="kind")]
+#: ``VoxSource.model`` value that merges every visible model instance as the scene places it.
+ALL_MODELS = "@all"
+#: Palette indices of a .vox file (0 is "empty", never a voxel).
+PaletteIndex = Annotated[int, Field(ge=1, le=255)]
+
+
+class VoxSource(_Strict):
+    """A MagicaVoxel / Goxel ``.vox`` file; palette indices (1..255) become parts and optionally styles.
+
+    ``parts`` maps a part name to the palette indices painted with it (default:
+    one part per index used, named ``palette_<index>``); ``styles`` likewise
+    names a style per index (then every mapped index needs one; regions keep
+    them with ``style: '@source'``). ``ignore`` drops indices (guides, scaffolding).
+    A file with several models needs ``model``: an instance's index or name, or
+    ``'@all'`` to merge them as the scene places them (see sources/vox.py).
+    """
+
+    kind: Literal["vox"]
+    path: str
+    parts: Optional[dict[Annotated[str, Field(pattern=NAME_PATTERN)], list[PaletteIndex]]] = None
+    styles: Optional[dict[Annotated[str, Field(pattern=NAME_PATTERN)], list[PaletteIndex]]] = None
+    ignore: list[PaletteIndex] = Field([], description="Palette indices whose voxels are dropped.")
+    model: Optional[Union[Annotated[int, Field(ge=0)], str]] = Field(
+        None, description="Which model instance of a multi-model file: index, name, or '@all' (merged as placed).")
+    up_axis: UpAxis = Field(UpAxis.Z, description="MagicaVoxel is Z up (front -Y); it is rotated onto +Y.")
+    voxel_size_m: PositiveFloat = Field(0.05, description="Edge of one input voxel in metres.")
+
+    @model_validator(mode="after")
+    def _one_label_per_index(self) -> "VoxSource":
+        ignored = set(self.ignore)
+        for what, mapping in (("part", self.parts), ("style", self.styles)):
+            owner: dict[int, str] = {}
+            for name, indices in (mapping or {}).items():
+                for index in indices:
+                    if index in ignored:
+                        raise ValueError(f"palette index {index} is both ignored and mapped to {what} '{name}'")
+                    if index in owner and owner[index] != name:
+                        raise ValueError(f"palette index {index} is mapped to two {what}s, "
+                                         f"'{owner[index]}' and '{name}'")
+                    owner[index] = name
+        if self.styles is not None:
+            if self.parts is None:
+                raise ValueError("'styles' needs 'parts' too (every palette index with a style needs a part)")
+            parted = {i for indices in self.parts.values() for i in indices}
+            styled = {i for indices in self.styles.values() for i in indices}
+            for index in sorted(parted ^ styled):
+                where = "a part but no style" if index in parted else "a style but no part"
+                raise ValueError(f"palette index {index} has {where} (with 'styles', every part index needs one)")
+        return self
+
+
+SourceSpec = Annotated[Union[TextSource, CadSource, MeshSource, VoxelsSource, VoxSource], Field(discriminator="kind")]
 
 #: Fields of each source kind that name input files (resolved against the recipe's folder).
 SOURCE_FILE_FIELDS: dict[str, tuple[str, ...]] = {
@@ -307,6 +365,7 @@ SOURCE_FILE_FIELDS: dict[str, tuple[str, ...]] = {
     "cad": ("script",),
     "mesh": ("path",),
     "voxels": ("path",),
+    "vox": ("path",),
 }
 
 
@@ -394,6 +453,8 @@ class ExportSettings(_Strict):
         None, description="LOD chain: ratios of LOD0's triangles ([1.0, 0.5, 0.25]) or triangle counts "
                           "([20000, 5000, 1000]); the first entry is LOD0.")
     collision: CollisionKind = CollisionKind.NONE
+    vox: list[VoxExport] = Field([], description="Also write <name>.coarse.vox and/or <name>.fine.vox "
+                                 "(MagicaVoxel) to touch the asset up in a voxel editor.")
 
     @field_validator("lods")
     @classmethod
@@ -411,11 +472,11 @@ class ExportSettings(_Strict):
             raise ValueError("a LOD needs at least 4 triangles")
         return v
 
-    @field_validator("formats")
+    @field_validator("formats", "vox")
     @classmethod
-    def _unique(cls, v: list[ExportFormat]) -> list[ExportFormat]:
+    def _unique(cls, v: list) -> list:
         if len(set(v)) != len(v):
-            raise ValueError("formats are listed twice")
+            raise ValueError("an entry is listed twice")
         return v
 
 

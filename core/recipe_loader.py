@@ -71,7 +71,7 @@ def format_loc(loc: tuple) -> str:
     return out
 
 
-_TAGGED_UNION_MEMBERS = {"text", "cad", "mesh", "voxels", "box", "cylinder", "sphere", "cone", "torus",
+_TAGGED_UNION_MEMBERS = {"text", "cad", "mesh", "voxels", "vox", "box", "cylinder", "sphere", "cone", "torus",
                          "extrude", "union", "difference", "intersection"}
 
 

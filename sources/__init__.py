@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sources import cad, mesh, text, voxels
+from sources import cad, mesh, text, vox, voxels
 from sources.base import PartMeshes, PartVoxels, Source, SourceResult
 
 #: source kind (the recipe's ``source.kind``) → its ``load``.
@@ -18,6 +18,7 @@ REGISTRY: dict[str, Source] = {
     "cad": cad.load,
     "mesh": mesh.load,
     "voxels": voxels.load,
+    "vox": vox.load,
 }
 
 
