@@ -23,6 +23,7 @@ from model.ablations import ABLATIONS, ablation_configs
 from model.config import ModelConfig
 from model.data import exemplars_from_set
 from model.train import TrainConfig, train
+from stylesets.provenance import record_of_set
 from stylesets.registry import resolve_style_set
 
 
@@ -98,7 +99,7 @@ def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_e
     with bar:
         task = bar.add_task("train", total=steps, losses="")
         result = train(exemplars, cfg, tcfg, resume=resume, part_aliases=sset.vocabulary.alias_map(),
-                       progress=progress)
+                       progress=progress, style_set=record_of_set(sset).to_json())
     if not quiet:
         console.print(f"done: step {result.step}, {result.seconds_per_iteration:.2f} s/iteration; "
                       f"model {result.model}, log {result.log}")

@@ -26,6 +26,7 @@ bounds memory by one block and skips the empty space between letters.
 
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 
@@ -33,6 +34,7 @@ import numpy as np
 
 from model.checkpoint import FORMAT_VERSION, Checkpoint, load_checkpoint
 from model.masks import fill_nearest
+from model.provenance import checkpoint_style_set, exemplar_extras
 from model.upsample import fill_styles_everywhere, nearest_upsample
 from model.windows import blockwise_forward
 from core.errors import DetailizeError
@@ -143,7 +145,14 @@ class DecollageDetailizer:
             "style_names": list(self.ckpt.style_names),
             "part_names": list(self.ckpt.part_names),
             "training": dict(self.ckpt.training),
+            "style_set": {"name": self.style_set[0] and self.style_set[0].name,
+                          "digest": self.style_set[0] and self.style_set[0].digest, "from": self.style_set[1]},
         }
+
+    @functools.cached_property
+    def style_set(self):
+        """(the set the checkpoint learned from, as a ``StyleSetRecord`` or None; where that came from)."""
+        return checkpoint_style_set(self.ckpt.training)
 
     def detailize(self, grid: LabeledGrid, seed: int = 0) -> FineGrid:
         """LabeledGrid (X, Y, Z) → FineGrid (f·X, f·Y, f·Z), occupancy float32 in [0, 1].
@@ -169,7 +178,9 @@ class DecollageDetailizer:
             voxel_size_m=grid.voxel_size_m / f,
             origin_m=grid.origin_m,
             detailizer=self.name,
-            extras={"checkpoint": str(self.checkpoint_path), "seed": int(seed)},
+            extras={"checkpoint": str(self.checkpoint_path), "seed": int(seed),
+                    # the styles assigned are the exemplars whose learned geometry shapes the output
+                    **exemplar_extras(self.style_set[0], [grid.style_names[i] for i in np.unique(grid.style[occ])])},
         )
 
     # ------------------------------------------------------------------ helpers

@@ -254,6 +254,7 @@ class Trainer:
 
         self.exemplars, self.cfg, self.tcfg, self.aug = list(exemplars), cfg, tcfg, tcfg.augment()
         self.part_aliases = dict(part_aliases or {})
+        self.style_set: dict | None = None  # the set's provenance record, stored in checkpoints
         self.device = resolve_device(tcfg.device)
         if self.device.type == "cpu":
             torch.set_num_threads(cpu_threads())
@@ -392,6 +393,7 @@ class Trainer:
             "torch": torch.__version__,
             "train_config": _plain(dataclasses.asdict(self.tcfg)),
             "augment": _plain(dataclasses.asdict(self.aug)),
+            **({"style_set": self.style_set} if self.style_set else {}),
         }
 
     def checkpoint(self, full: bool = True) -> Checkpoint:
@@ -471,6 +473,7 @@ def train(
     resume: bool = True,
     part_aliases: dict[str, str] | None = None,
     progress: Callable[[int, int, dict[str, float]], None] | None = None,
+    style_set: dict | None = None,
 ) -> TrainResult:
     """Train (or continue training) up to ``tcfg.steps`` iterations; see the module docstring.
 
@@ -478,6 +481,8 @@ def train(
         exemplars: the style set (``n_styles`` exemplars sharing ``n_parts`` part names).
         part_aliases: other accepted part names (alias → part), recorded in the checkpoints.
         progress: called after every iteration with (step, total, losses) — the CLI's progress bar.
+        style_set: the set's provenance (``stylesets.provenance.StyleSetRecord.to_json()``: name, digest,
+            each exemplar's licence), recorded in the checkpoints so built assets can credit exemplars.
     Raises:
         DetailizeError: inconsistent set/config, unusable resume checkpoint, unwritable folder,
             or a loss that became NaN/inf (training diverged; the last checkpoint is kept).
@@ -486,6 +491,7 @@ def train(
     out.mkdir(parents=True, exist_ok=True)
     last, model_path, log_path = out / "last.pt", out / "model.pt", out / "log.jsonl"
     trainer = Trainer(exemplars, cfg, tcfg, part_aliases)
+    trainer.style_set = style_set
     if resume and last.exists():
         trainer.restore(last)
     elif log_path.exists():

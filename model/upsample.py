@@ -13,6 +13,7 @@ from scipy import ndimage
 from scipy.special import ndtr
 
 from core.grid import UPSAMPLE_FACTOR, FineGrid, LabeledGrid
+from core.provenance import EXEMPLARS
 
 #: Blur of the nearest-upsampled occupancy, in fine voxels. A quarter of a coarse
 #: cell at ×16: edges round off visibly while one-voxel features survive the 0.4 iso.
@@ -96,4 +97,5 @@ class UpsampleDetailizer:
             voxel_size_m=grid.voxel_size_m / f,
             origin_m=grid.origin_m,
             detailizer=self.name,
+            extras={EXEMPLARS: []},  # styles only colour regions: no exemplar's geometry is used
         )

@@ -31,10 +31,12 @@ from pipeline.cache import asset_key, remove_stale_temporaries, valid_record, wr
 from pipeline.engines import make_collision, make_lods
 from pipeline.executors import LocalExecutor
 from pipeline.export import apply_pivot, export_asset
-from pipeline.manifest import write_manifest
+from pipeline.manifest import write_build_signal, write_manifest
 from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
+from pipeline.provenance import asset_provenance, glb_extras, write_notice
 from pipeline.regions import apply_regions
 from pipeline.report import AssetReport, AssetStatus
+from pipeline.vox_export import vox_files
 from sources import load_source
 
 
@@ -71,6 +73,17 @@ def _input_files(asset: Asset, loaded: LoadedRecipe) -> dict[str, Path]:
 def _detailizer_of(asset: Asset, loaded: LoadedRecipe, override: str | None) -> tuple[str, str | None]:
     settings = asset.detailize
     return override or settings.detailizer, settings.checkpoint and str(loaded.resolve(settings.checkpoint))
+
+
+def input_paths(loaded: LoadedRecipe, detailizer_override: str | None = None) -> set[Path]:
+    """Every file the assets' keys hash before building: the files the recipe names, the weights."""
+    paths = set()
+    for asset in loaded.recipe.assets:
+        paths.update(_input_files(asset, loaded).values())
+        weights = effective_checkpoint(*_detailizer_of(asset, loaded, detailizer_override))
+        if weights:
+            paths.add(Path(weights))
+    return paths
 
 
 def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -> None:
@@ -202,16 +215,19 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
         fine = detailizer.detailize(grid, seed=asset.detailize.seed)
 
     export = asset.export
+    provenance = asset_provenance(name, effective_checkpoint(name, checkpoint), fine)
     with _timed(report, "mesh", progress):
         mesh = mesh_fine_grid(fine, MeshSettings.from_export(export))
         lods = make_lods(mesh, fine, export.lods)
         collision = make_collision(export.collision, mesh, grid)
 
     with _timed(report, "export", progress):
+        vox_jobs, vox_record = vox_files(export.vox, grid, fine, asset.name)
         written, pivot_offset = export_asset(mesh, out_dir, asset.name, export.formats, export.pivot,
                                              preview_size_px=export.preview_size_px if export.preview else None,
                                              glb_material=export.glb_material, profile=export.profile,
-                                             lods=lods, collision=collision)
+                                             lods=lods, collision=collision, asset_extras=glb_extras(provenance),
+                                             extra_files=vox_jobs)
 
     report.outputs = {
         kind: {"path": path.name, "sha256": sha256_file(path), "bytes": path.stat().st_size}
@@ -221,6 +237,8 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
         "source_kind": asset.source.kind,
         **({"variant": asset.variant} if asset.variant else {}),
         "detailizer": detailizer.describe(),
+        "provenance": provenance,
+        **({"vox": vox_record} if vox_record else {}),
         "coarse_grid": {
             "shape": list(grid.shape),
             "voxel_size_m": grid.voxel_size_m,
@@ -307,4 +325,6 @@ def build_recipe(loaded: LoadedRecipe, out_dir: Path, progress: Progress | None 
     finally:
         ordered = [reports[p.index] for p in plan if p.index in reports]
         write_manifest(out_dir, loaded, ordered)
+        write_notice(out_dir, [r.entry() for r in ordered])
+        write_build_signal(out_dir, ordered)
     return ordered

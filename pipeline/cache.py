@@ -22,7 +22,8 @@ from core.files import sha256_file, write_bytes_atomic
 from pipeline.report import AssetStatus
 
 RECORD_DIR = ".decollage"
-RECORD_FORMAT = 1
+#: 2: entries carry the asset's provenance (exemplars, licences) and GLBs carry it in asset.extras.
+RECORD_FORMAT = 2
 
 #: Distributions whose versions change the bytes of the outputs.
 KEY_LIBRARIES = ("numpy", "scipy", "scikit-image", "trimesh", "fast-simplification", "fonttools", "manifold3d",

@@ -102,10 +102,12 @@ def _encode_glb(mesh: "trimesh.Trimesh", stem: str, matte_material: bool = False
     return _encode_glb_nodes([(stem, mesh)], matte_material)
 
 
-def _encode_glb_nodes(nodes: list[tuple[str, "trimesh.Trimesh"]], matte_material: bool = False) -> bytes:
+def _encode_glb_nodes(nodes: list[tuple[str, "trimesh.Trimesh"]], matte_material: bool = False,
+                      asset_extras: dict | None = None) -> bytes:
     """GLB with one named node (and mesh) per entry, normals and COLOR_0 where coloured.
 
-    ``matte_material`` adds a white non-metallic material.
+    ``matte_material`` adds a white non-metallic material. ``asset_extras`` (plain JSON)
+    becomes the glTF ``asset.extras`` (the asset's provenance, ``pipeline/provenance.py``).
 
     Without a material, glTF's default one is fully metallic, which some
     renderers (three.js, for one) show almost black; with one, trimesh reads the
@@ -120,6 +122,8 @@ def _encode_glb_nodes(nodes: list[tuple[str, "trimesh.Trimesh"]], matte_material
 
     def finish_tree(tree: dict) -> None:
         tree["asset"]["generator"] = GENERATOR
+        if asset_extras:
+            tree["asset"]["extras"] = asset_extras
         if matte_material:
             tree["materials"] = [{"name": nodes[0][0], **_GLB_MATERIAL}]
         for gltf_mesh in tree.get("meshes", []):
@@ -180,6 +184,8 @@ def export_asset(
     profile: EngineProfile = EngineProfile.GENERIC,
     lods: Sequence["trimesh.Trimesh"] = (),
     collision: Sequence["trimesh.Trimesh"] = (),
+    asset_extras: dict | None = None,
+    extra_files: Sequence[tuple[str, str, Callable[[], bytes]]] = (),
 ) -> tuple[dict[str, Path], np.ndarray]:
     """Write all files of one asset, all or nothing: ``<stem>.<format>``, ``<stem>.png`` and engine extras.
 
@@ -195,6 +201,9 @@ def export_asset(
             meshes go into the GLB outputs only; OBJ/STL/PLY hold LOD0.
         lods: LOD1..n meshes (same frame as ``mesh``).
         collision: collision pieces (same frame as ``mesh``).
+        asset_extras: JSON written into every GLB's ``asset.extras`` (provenance and licences).
+        extra_files: more files of the asset, ``(kind, file name, () → bytes)``, written
+            with the others, all or nothing (the ``.vox`` exports, ``pipeline/vox_export.py``).
 
     Returns:
         (kind → final path, with kinds ``"glb"``, ``"obj"``, ``"stl"``, ``"ply"``,
@@ -219,15 +228,17 @@ def export_asset(
     jobs: list[tuple[str, str, Callable[[], bytes]]] = []
     for fmt in (ExportFormat(f) for f in formats):
         if fmt == ExportFormat.GLB:
-            jobs.append(("glb", f"{stem}.glb", lambda nodes=plan.main_nodes: _encode_glb_nodes(nodes, glb_material)))
+            jobs.append(("glb", f"{stem}.glb",
+                         lambda nodes=plan.main_nodes: _encode_glb_nodes(nodes, glb_material, asset_extras)))
             for file_stem, nodes in plan.extra_files:
                 jobs.append((f"glb{file_stem[len(stem):]}", f"{file_stem}.glb",
-                             lambda nodes=nodes: _encode_glb_nodes(nodes, glb_material)))
+                             lambda nodes=nodes: _encode_glb_nodes(nodes, glb_material, asset_extras)))
         else:
             jobs.append((fmt.value, f"{stem}.{fmt.value}", lambda fmt=fmt: ENCODERS[fmt](other, stem)))
     if preview_size_px is not None:
 
         jobs.append(("preview", f"{stem}.png", lambda: preview_png(moved, preview_size_px)))
+    jobs.extend(extra_files)
     written: dict[str, Path] = {}
     with AtomicWriter(out_dir) as writer:
         for kind, filename, encode in jobs:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import platform
+import time
 from pathlib import Path
 
 from core import __version__
@@ -19,6 +20,8 @@ from core.grid import ISO_LEVEL
 from pipeline.report import AssetStatus
 
 MANIFEST_NAME = "manifest.json"
+#: Rewritten after every build (also one that changed nothing): the signal a gallery polls to refresh.
+BUILD_SIGNAL = Path(".decollage") / "build.json"
 MANIFEST_FORMAT = 1
 
 AXES = {"up": "+Y", "front": "+Z", "right": "+X", "units": "m", "convention": "glTF 2.0"}
@@ -48,4 +51,25 @@ def write_manifest(out_dir: Path, loaded, reports) -> Path:
     path = out_dir / MANIFEST_NAME
     text = json.dumps(manifest_dict(loaded, reports), indent=2, sort_keys=False) + "\n"
     write_bytes_atomic(path, text.encode("utf-8"))
+    return path
+
+
+def write_build_signal(out_dir: Path, reports) -> Path:
+    """Write ``out_dir/.decollage/build.json`` after a build: ``{"counter", "finished_unix", "rebuilt", "failed"}``.
+
+    ``counter`` goes up by one per build into ``out_dir`` (``decollage build``, and each rebuild of
+    ``--watch``); ``rebuilt`` names the assets built this time (not taken from the cache). A viewer
+    polls the file (or its mtime) and reloads the assets named. ``manifest.json`` itself is not the
+    signal: an unchanged rebuild rewrites it byte-identical.
+    """
+    path = out_dir / BUILD_SIGNAL
+    try:
+        counter = int(json.loads(path.read_text()).get("counter", 0))
+    except (OSError, ValueError, AttributeError):
+        counter = 0
+    path.parent.mkdir(exist_ok=True)
+    data = {"counter": counter + 1, "finished_unix": round(time.time(), 3),
+            "rebuilt": [r.name for r in reports if not r.cached and r.status == AssetStatus.BUILT],
+            "failed": [r.name for r in reports if r.status == AssetStatus.FAILED]}
+    write_bytes_atomic(path, (json.dumps(data) + "\n").encode("utf-8"))
     return path
