@@ -17,8 +17,9 @@ from cli.console import ExitCode, fail, stderr
 from core.errors import DecollageError, UsageError
 from core.recipe_loader import load_recipe
 from pipeline.build import build_recipe, check_recipe, plan_build
-from pipeline.executors import ExecutorKind, make_executor
+from pipeline.executors import ExecutorKind, LocalExecutor, make_executor
 from pipeline.report import AssetStatus
+from pipeline.watch import QUIET_MS, Rebuild, watch_build
 
 
 def build_command(
@@ -40,6 +41,10 @@ def build_command(
                                     help="Build the other assets after a failure (default), or stop at the first."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Only errors and the summary."),
     debug: bool = typer.Option(False, "--debug", help="Show tracebacks of internal errors."),
+    watch: bool = typer.Option(False, "--watch", help="Build, then rebuild the assets whose inputs change "
+                               "(recipe entries, input files, weights) whenever a watched file is saved; Ctrl-C stops."),
+    quiet_ms: int = typer.Option(QUIET_MS, "--debounce-ms", min=10, max=5000,
+                                 help="--watch: rebuild once no watched file changed for this long."),
 ) -> None:
     """Build every asset of a recipe into meshes, previews and a manifest (only what changed)."""
 
@@ -53,8 +58,14 @@ def build_command(
             raise UsageError(f"--only names unknown assets {unknown} (assets: {names[:20]})")
         selected = set(only) if only else None
         pick = (lambda a: a.name in selected) if selected else None
+        if watch and (list_only or check or json_out):
+            raise UsageError("--watch builds and keeps watching; it does not go with --list, --check or --json")
         if list_only:
             _print_list(loaded, pick, json_out)
+            return
+        if watch:
+            _watch(recipe, out, pick, detailizer, make_executor(executor, jobs, address, gpus_per_task), force,
+                   quiet, keep_going, quiet_ms)
             return
         if check:
             check_recipe(loaded, detailizer)
@@ -88,6 +99,47 @@ def build_command(
         stderr().print(f"[red]{len(failed)} of {len(reports)} assets failed[/]; "
                         f"the others are in {out} (see manifest.json)")
         raise typer.Exit(ExitCode.ASSETS_FAILED)
+
+
+def _watch(recipe: Path, out: Path, pick, detailizer, runner, force: bool, quiet: bool, keep_going: bool,
+           quiet_ms: int) -> None:
+    """``--watch``: the first build, then one rebuild per burst of saves (pipeline/watch.py)."""
+    console = stderr()
+    first = [force]
+
+    def build(loaded):
+        with _ConsoleProgress(len(loaded.recipe.assets), True, True) as progress:
+            if isinstance(runner, LocalExecutor):
+                runner.progress = progress
+            reports = build_recipe(loaded, out, progress, detailizer, only=pick, force=first[0], executor=runner)
+        first[0] = False
+        return reports
+
+    def show(round_: Rebuild) -> None:
+        changed = ", ".join(p.name for p in round_.changed) or "first build"
+        if round_.error is not None:
+            console.print(f"[red]{changed}: not built[/]: {round_.error.one_line()}", markup=True)
+            return
+        failed = [r for r in round_.reports if r.status == AssetStatus.FAILED]
+        built = [n for n in round_.rebuilt if n not in {r.name for r in failed}]
+        timing = f"{round_.build_s:.2f} s" + (f", {round_.since_save_s:.2f} s after the save"
+                                              if round_.since_save_s is not None else "")
+        console.print(f"{changed}: rebuilt {', '.join(built) or 'nothing'} ({timing}); "
+                      f"{len(round_.reports) - len(round_.rebuilt)} up to date")
+        if not quiet:
+            for r in round_.reports:
+                if not r.cached:
+                    for w in r.warnings:
+                        console.print(f"  [yellow]warning:[/] {r.name}: {w}")
+        if round_.changed == []:
+            console.print(f"watching for changes (saves settle for {quiet_ms} ms); Ctrl-C stops")
+
+    del keep_going  # every round builds every stale asset; a failure is shown and watching goes on
+    try:
+        watch_build(recipe, build, show, detailizer_override=detailizer, quiet_ms=quiet_ms)
+    except KeyboardInterrupt:
+        pass
+    console.print("stopped watching")
 
 
 def _print_list(loaded, pick, json_out: bool) -> None:
