@@ -7,12 +7,16 @@
 - ``mushroom.npz``: a 16³ voxel grid with ``occupancy``, ``part`` and
   ``part_names`` (stem, cap), [x, y, z] indexed, +Y up: what another generator
   would hand over.
+- ``tower.vox``: a 12 × 12 × 16 MagicaVoxel model (z up) painted with palette
+  index 1 (walls), 2 (roof) and 3 (door): what a voxel artist would save.
 """
 
 from pathlib import Path
 
 import numpy as np
 import trimesh
+
+from sources.vox_file import write_vox
 
 HERE = Path(__file__).parent
 
@@ -45,7 +49,21 @@ def mushroom(n: int = 16) -> dict[str, np.ndarray]:
     return {"occupancy": occupancy, "part": part, "part_names": np.array(["stem", "cap"])}
 
 
+def tower() -> bytes:
+    grid = np.zeros((12, 12, 16), dtype=np.uint8)
+    x, y = np.meshgrid(np.arange(12) + 0.5, np.arange(12) + 0.5, indexing="ij")
+    r = np.hypot(x - 6, y - 6)
+    grid[r <= 4.5, :10] = 1  # round walls
+    for z in range(10, 16):  # a cone roof
+        grid[r <= 5.5 * (16 - z) / 6, z] = 2
+    grid[5:7, 1:3, 0:3] = 3  # a door on the front (-y)
+    palette = np.zeros((256, 4), dtype=np.uint8)
+    palette[1:4] = [(168, 160, 150, 255), (193, 80, 62, 255), (139, 100, 72, 255)]
+    return write_vox([grid], palette)
+
+
 if __name__ == "__main__":
     cottage().export(HERE / "cottage.glb")
     np.savez_compressed(HERE / "mushroom.npz", **mushroom())
-    print("wrote", HERE / "cottage.glb", HERE / "mushroom.npz")
+    (HERE / "tower.vox").write_bytes(tower())
+    print("wrote", HERE / "cottage.glb", HERE / "mushroom.npz", HERE / "tower.vox")

@@ -127,7 +127,8 @@ def test_failing_assets_exit_1_without_partial_files(case, write_recipe, tmp_pat
     code, _, stderr = _run(["build", recipe, "-o", out])
     assert code == 1, stderr
     _assert_one_line_error(stderr, recipe, field)
-    assert _files(out) == ["manifest.json"]
+    assert _files(out) == [".decollage", "NOTICE.txt", "manifest.json"]  # build-level files only
+    assert _files(out / ".decollage") == ["build.json"]
     manifest = json.loads((out / "manifest.json").read_text())
     entry = manifest["assets"][0]
     assert entry["status"] == "failed" and field in entry["error"] and entry["outputs"] == {}

@@ -74,7 +74,8 @@ def test_sizes_follow_the_recipes(showcase):
     assert by_name["castle_word"]["coarse_grid"]["shape"][1] in (16, 17)
 
 
-@pytest.mark.parametrize("recipe", ["text_word.yaml", "cad_tower.yaml", "imported_mesh.yaml", "voxel_grid.yaml"])
+@pytest.mark.parametrize("recipe", ["text_word.yaml", "cad_tower.yaml", "imported_mesh.yaml", "voxel_grid.yaml",
+                                    "vox_model.yaml"])
 def test_single_example_recipes_validate(recipe):
     result = CliRunner().invoke(app, ["validate", str(RECIPES / recipe)])
     assert result.exit_code == 0, result.stderr
