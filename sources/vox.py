@@ -42,7 +42,7 @@ from core.files import input_file
 from core.grid import EMPTY
 from core.recipe import ALL_MODELS, VoxSource
 from sources.base import PartVoxels
-from sources.vox_file import VoxScene, dense, place, read_vox
+from sources.vox_file import MAX_PLACED_VOXELS, VoxScene, dense, place, read_vox
 from sources.voxels import rotate_grid
 
 #: Largest file read, bytes (a full 256³ model is 64 MiB of XYZI rows).
@@ -122,6 +122,10 @@ def select_model(scene: VoxScene, choice: int | str | None) -> tuple[np.ndarray,
             problem = "no model is named" if not chosen else f"{len(chosen)} models are named"
             raise SourceError(f"{problem} {choice!r} ({listing})", field="model",
                               hint="use a unique name, or the model's index")
+    total = sum(len(scene.models[inst.model].voxels) for inst in chosen)
+    if total > MAX_PLACED_VOXELS:
+        raise SourceError(f"the chosen models hold {total} voxels, more than {MAX_PLACED_VOXELS} can be read",
+                          field="model", hint="pick fewer models with model: <index or name>")
     rows = [place(scene.models[inst.model], inst) for inst in chosen]
     rows = [r for r in rows if len(r)]
     if not rows:

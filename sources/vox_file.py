@@ -47,6 +47,9 @@ KNOWN_VERSIONS = (150, 200)
 WRITE_VERSION = 200
 #: Largest merged scene, in voxel cells (a 1024 × 1024 × 256 box), so a stray translation cannot exhaust memory.
 MAX_SCENE_CELLS = 1 << 28
+#: Largest number of model instances, and of voxels placed in all (a scene graph sharing nodes can multiply them).
+MAX_INSTANCES = 4096
+MAX_PLACED_VOXELS = 1 << 25
 _MAX_DEPTH = 64
 _HINT = "save the file again from MagicaVoxel or Goxel (File > Export > .vox)"
 
@@ -269,10 +272,14 @@ def _walk(nodes: dict[int, tuple], models: list[VoxModel], layers_hidden: set[in
     if 0 not in nodes or nodes[0][0] != "T":
         raise _bad("the scene graph has no root transform (node 0)")
     out: list[VoxInstance] = []
+    visits = [0]
 
     def visit(node_id: int, rot: np.ndarray, trans: np.ndarray, name: str, hidden: bool, path: tuple) -> None:
         if node_id in path or len(path) > _MAX_DEPTH:
             raise _bad("the scene graph has a cycle or is too deep")
+        visits[0] += 1
+        if visits[0] > 16 * MAX_INSTANCES or len(out) > MAX_INSTANCES:
+            raise _bad(f"the scene graph places more than {MAX_INSTANCES} models")
         if node_id not in nodes:
             raise _bad(f"the scene graph names node {node_id}, which the file does not define")
         node = nodes[node_id]

@@ -196,3 +196,25 @@ def test_wrong_extension_is_refused(tmp_path):
     (tmp_path / "a.npy").write_bytes(_valid())
     with pytest.raises(SourceError, match="unsupported format"):
         load_source(_spec("a.npy"), tmp_path)
+
+
+def test_a_scene_graph_multiplying_models_is_refused(tmp_path):
+    def chunk(cid, content):
+        return struct.pack("<4sii", cid, len(content), 0) + content
+
+    def ints(*values):
+        return struct.pack(f"<{len(values)}i", *values)
+
+    empty = ints(0)  # an empty DICT
+    body = chunk(b"SIZE", ints(1, 1, 1)) + chunk(b"XYZI", ints(1) + bytes([0, 0, 0, 1]))
+    body += chunk(b"nTRN", ints(0) + empty + ints(1, -1, -1, 1) + empty)
+    # 20 levels of groups, each holding its child twice: 2**20 paths to one shape
+    for level in range(20):
+        group, transform = 1 + 2 * level, 2 + 2 * level
+        body += chunk(b"nGRP", ints(group) + empty + ints(2, transform, transform))
+        body += chunk(b"nTRN", ints(transform) + empty + ints(group + 2 if level < 19 else 99, -1, -1, 1) + empty)
+    body += chunk(b"nSHP", ints(99) + empty + ints(1, 0) + empty)
+    data = b"VOX " + ints(200) + struct.pack("<4sii", b"MAIN", 0, len(body)) + body
+    (tmp_path / "bomb.vox").write_bytes(data)
+    with pytest.raises(SourceError, match="places more than"):
+        load_source(_spec("bomb.vox", model="@all"), tmp_path)
