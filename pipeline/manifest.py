@@ -21,7 +21,8 @@ from pipeline.report import AssetStatus
 
 MANIFEST_NAME = "manifest.json"
 #: Rewritten after every build (also one that changed nothing): the signal a gallery polls to refresh.
-BUILD_SIGNAL = Path(".decollage") / "build.json"
+#: At the top level: ``.decollage/`` holds one record per asset, and an asset may be named "build".
+BUILD_SIGNAL = Path("build.json")
 MANIFEST_FORMAT = 1
 
 AXES = {"up": "+Y", "front": "+Z", "right": "+X", "units": "m", "convention": "glTF 2.0"}
@@ -55,7 +56,7 @@ def write_manifest(out_dir: Path, loaded, reports) -> Path:
 
 
 def write_build_signal(out_dir: Path, reports) -> Path:
-    """Write ``out_dir/.decollage/build.json`` after a build: ``{"counter", "finished_unix", "rebuilt", "failed"}``.
+    """Write ``out_dir/build.json`` after a build: ``{"counter", "finished_unix", "rebuilt", "failed"}``.
 
     ``counter`` goes up by one per build into ``out_dir`` (``decollage build``, and each rebuild of
     ``--watch``); ``rebuilt`` names the assets built this time (not taken from the cache). A viewer
@@ -67,7 +68,6 @@ def write_build_signal(out_dir: Path, reports) -> Path:
         counter = int(json.loads(path.read_text()).get("counter", 0))
     except (OSError, ValueError, AttributeError):
         counter = 0
-    path.parent.mkdir(exist_ok=True)
     data = {"counter": counter + 1, "finished_unix": round(time.time(), 3),
             "rebuilt": [r.name for r in reports if not r.cached and r.status == AssetStatus.BUILT],
             "failed": [r.name for r in reports if r.status == AssetStatus.FAILED]}

@@ -19,7 +19,7 @@ weights, the detailizer, the library versions). Saving a file without changing
 its bytes therefore rebuilds nothing. A recipe that no longer parses is
 reported and the previous watch goes on until it is fixed.
 
-The gallery signal: every build rewrites ``<out>/.decollage/build.json``
+The gallery signal: every build rewrites ``<out>/build.json``
 (``pipeline/manifest.py``), whose ``counter`` goes up and whose ``rebuilt``
 names the assets to reload.
 """
