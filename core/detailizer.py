@@ -31,12 +31,14 @@ class Detailizer(Protocol):
 REGISTRY: dict[str, str] = {
     "upsample": "model.upsample:UpsampleDetailizer",
     "decollage": "model.infer:DecollageDetailizer",
+    "quilt": "model.quilt:QuiltDetailizer",
 }
 
 #: name → "module:ATTRIBUTE" of the checkpoint file a learned detailizer loads when a recipe names none
 #: (the model shipped in the repo).
 DEFAULT_CHECKPOINTS: dict[str, str] = {
     "decollage": "model.infer:DEFAULT_CHECKPOINT",
+    "quilt": "model.quilt.sets:DEFAULT_SET_FILE",
 }
 
 #: The detailizer of an asset whose recipe names none: the shipped learned model.

@@ -431,8 +431,10 @@ class RegionRule(_Strict):
 
 class DetailizeSettings(_Strict):
     detailizer: str = Field(DEFAULT_DETAILIZER, description="'decollage' (the learned model; the shipped weights "
-                            "unless 'checkpoint' names others) or 'upsample' (the non-learned baseline).")
-    checkpoint: Optional[str] = Field(None, description="Checkpoint file for a learned detailizer.")
+                            "unless 'checkpoint' names others), 'quilt' (non-learned: copies the style exemplars' "
+                            "detail) or 'upsample' (the non-learned baseline).")
+    checkpoint: Optional[str] = Field(None, description="Checkpoint file for a learned detailizer; for 'quilt' the "
+                                      "style set it copies from (a set name or .npz file; default: things).")
     seed: int = Field(0, ge=0)
     device: Device = Device.AUTO
 

@@ -112,7 +112,8 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
                     raise RecipeError(
                         f"unknown {attr} {value!r}{suffix} (known: {', '.join(vocab)})",
                         file=loaded.path, field=f"{where}.regions[{r}].{attr}",
-                        hint=f"use one of the {attr}s the '{det.name}' detailizer was trained on",
+                        hint=(f"use one of the {attr}s the '{det.name}' detailizer was trained on" if det.learned
+                              else f"use one of the {attr}s of the style set the '{det.name}' detailizer copies from"),
                     )
 
 

@@ -1,0 +1,584 @@
+"""Benchmark of the ``quilt`` detailizer beside ``upsample`` and the shipped model (not a test; prints tables).
+
+Run from the repository root::
+
+    .venv/bin/python benchmarks/bench_quilt.py quality [--limit 16] [--detailizers quilt,upsample,decollage]
+    .venv/bin/python benchmarks/bench_quilt.py speed [--repeats 5]
+    .venv/bin/python benchmarks/bench_quilt.py long [--word ...]
+    .venv/bin/python benchmarks/bench_quilt.py import
+
+``quality`` runs outputs of the evaluation protocol (``evaluation/protocols/things_v1``,
+``--limit`` spread evenly, or ``--split test``) through each detailizer and reports per output and
+on average:
+
+* Strict/Loose-IOU (``core.structure.strict_loose_iou``, the evaluation's definition);
+* style specificity: LP-detail minus the same measure against one exemplar of
+  another category (``OTHER_CATEGORY``);
+* **LP-detail** (self-contained version of the measuring issue's metric): 1000
+  surface patches (12³, seeded by the output's index, ``evaluation.patches``'s
+  sampler) that are *not extrusions* (not constant along any axis) and have
+  IOU > 0.95 with some patch of the exemplar assigned to the patch's region
+  (the style of the fine voxel at the patch position), as a fraction of all
+  sampled patches; the exemplar dictionaries are built with
+  ``evaluation.patch_index.style_patch_dictionary`` from the exemplar as stored (no
+  rotations or mirrors) and cached under ``--cache``; also the extrusion
+  fraction and the plain own-style LP-IOU;
+* the seam measure (quilt only): the fraction of 6-neighbouring pairs of
+  surface cells (occupied cells with an empty 26-neighbour; interior cells are
+  solid and have no source) whose sources continue each other (adjacent in
+  the same exemplar, same symmetry);
+* floating components: 6-connected components of the binarised output beyond
+  one per 6-connected coarse component that has material; and enclosed
+  cavities (empty components not connected to the outside).
+
+``speed`` times one 16³ → 256³ detailization (the house-like grid of
+``evaluation.benchmarking`` and protocol contents) and the library build, each
+detailizer in a fresh child process for its peak RSS. ``long`` runs a long
+word (bounded memory). ``import`` times ``decollage styles import`` of a
+folder of meshes to the first detailed asset.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pickle
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+N_PATCHES = 1000
+
+
+# --------------------------------------------------------------------------- measures
+
+
+def extrusion_mask(rows: np.ndarray) -> np.ndarray:
+    """(m,) bool: 12³ patches (m, 1728) that are constant along at least one axis."""
+    p = rows.reshape(-1, 12, 12, 12)
+    out = np.zeros(len(p), dtype=bool)
+    for axis in (1, 2, 3):
+        first = np.take(p, [0], axis=axis)
+        out |= (p == first).all(axis=(1, 2, 3))
+    return out
+
+
+def style_dictionary(style_set, name: str, cache: Path):
+    """The LP dictionary of one exemplar (cached as a pickle keyed by the set's digest)."""
+    from evaluation.patch_index import style_patch_dictionary
+
+    path = cache / f"lpdict-{style_set.inputs_hash[:12]}-{name}.pkl"
+    if path.is_file():
+        return pickle.loads(path.read_bytes())
+    d = style_patch_dictionary([style_set.get(name).full(style_set.resolution) > 0])
+    cache.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(pickle.dumps(d))
+    return d
+
+
+def lp_detail(binary: np.ndarray, styles: np.ndarray, style_names, dicts: dict, seed: int) -> dict:
+    """LP-detail, own-style LP-IOU and extrusion fraction of a binarised output (see module docstring)."""
+    from evaluation.patch_index import iou_similar
+    from evaluation.patches import extract_patches, sample_surface_patches
+
+    pos = sample_surface_patches(binary, n=N_PATCHES, seed=seed)
+    if len(pos) == 0:
+        return {"lp_detail": 0.0, "lp_own": 0.0, "extrusion": 0.0}
+    rows = extract_patches(binary, pos)
+    ext = extrusion_mask(rows.numpy())
+    style_at = styles[tuple(pos.T)]
+    found = np.zeros(len(pos), dtype=bool)
+    for s in np.unique(style_at):
+        sel = np.flatnonzero(style_at == s)
+        found[sel] = iou_similar(rows[sel], dicts[style_names[s]])
+    return {"lp_detail": float((found & ~ext).mean()), "lp_own": float(found.mean()),
+            "extrusion": float(ext.mean())}
+
+
+#: For style specificity: each category's patches are also matched against one exemplar of another category.
+OTHER_CATEGORY = {"building": "bush", "plant": "birthday_cake", "cake": "druse", "crystal": "cottage"}
+
+
+def structure(binary: np.ndarray, coarse: np.ndarray) -> dict:
+    """Floating components and enclosed cavities of a binarised output (see module docstring)."""
+    from scipy import ndimage
+
+    six = ndimage.generate_binary_structure(3, 1)
+    _, n_fine = ndimage.label(binary, structure=six)
+    lab_c, n_coarse = ndimage.label(coarse, structure=six)
+    f = binary.shape[0] // coarse.shape[0]
+    pooled = binary.reshape(coarse.shape[0], f, coarse.shape[1], f, coarse.shape[2], f).any(axis=(1, 3, 5))
+    with_material = len(np.unique(lab_c[pooled & coarse]))
+    empty_lab, n_empty = ndimage.label(np.pad(~binary, 1, constant_values=True), structure=six)
+    return {"floating": int(n_fine - with_material), "cavities": int(n_empty - 1)}
+
+
+# --------------------------------------------------------------------------- quality
+
+
+def _detailizer(name: str, style_set):
+    if name == "quilt":
+        from model.quilt import QuiltDetailizer
+
+        return QuiltDetailizer(style_set=style_set)
+    from core.detailizer import get_detailizer
+
+    return get_detailizer(name, None, "cpu")
+
+
+def quality(args) -> None:
+    from core.structure import strict_loose_iou
+    from evaluation.evaluate import pick_outputs
+    from evaluation.protocol import load_protocol, resolve_protocol_set
+
+    protocol = load_protocol()
+    style_set = resolve_protocol_set(protocol)
+    outputs = list(protocol.outputs)
+    if args.ids:
+        outputs = [o for o in outputs if o.id in args.ids.split(",")]
+    elif args.split:
+        split = json.loads((ROOT / args.split).read_text()) if args.split.endswith(".json") else None
+        outputs = [o for o in outputs if split is None or o.content in split]
+    outputs = pick_outputs(outputs, args.limit)
+    cache = Path(args.cache)
+    names = args.detailizers.split(",")
+    dets = {n: _detailizer(n, style_set) for n in names}
+    rows = []
+    print(f"{len(outputs)} outputs; detailizers {names}; load {os.getloadavg()[0]:.2f}", flush=True)
+    for out in outputs:
+        grid = protocol.grid(out)
+        dicts = {s: style_dictionary(style_set, s, cache) for s in grid.style_names}
+        others = {s: style_dictionary(style_set, OTHER_CATEGORY[style_set.get(s).category], cache)
+                  for s in grid.style_names}
+        for n, det in dets.items():
+            t = time.perf_counter()
+            fine = det.detailize(grid, seed=0)
+            seconds = time.perf_counter() - t
+            binary = np.asarray(fine.occupancy) > 0.4
+            strict, loose = strict_loose_iou(binary, grid.occupancy)
+            row = {"id": out.id, "detailizer": n, "seconds": round(seconds, 3), "strict": strict, "loose": loose,
+                   **lp_detail(binary, fine.style, grid.style_names, dicts, out.index),
+                   "lp_other": lp_detail(binary, fine.style, grid.style_names, others, out.index)["lp_detail"],
+                   **structure(binary, grid.occupancy)}
+            if n == "quilt":
+                content, lib, res = det.source_field(grid, 0)
+                row["continuation"] = res.continuation
+                row.update({k: v for k, v in fine.extras.items() if k in ("fragments_removed", "bridges")})
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    print("\n| detailizer | n | s/output | Strict | Loose | LP-detail | specificity | LP-own | extrusions | "
+          "continuation | floating | cavities |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for n in names:
+        rs = [r for r in rows if r["detailizer"] == n]
+        m = {k: float(np.mean([r[k] for r in rs])) for k in rs[0] if isinstance(rs[0][k], (int, float))}
+        cont = f"{m['continuation']:.3f}" if "continuation" in m else "-"
+        print(f"| {n} | {len(rs)} | {m['seconds']:.2f} | {m['strict']:.3f} | {m['loose']:.3f} | {m['lp_detail']:.3f} | "
+              f"{m['lp_detail'] - m['lp_other']:+.3f} | {m['lp_own']:.3f} | {m['extrusion']:.3f} | {cont} | {sum(r['floating'] for r in rs)} | "
+              f"{sum(r['cavities'] for r in rs)} |")
+    if "quilt" in names:
+        print("\npaired differences of LP-detail per output, quilt minus the other (mean, 95 % bootstrap interval "
+              "over outputs, 2000 resamples):")
+        mine = {r["id"]: r for r in rows if r["detailizer"] == "quilt"}
+        for n in names:
+            if n == "quilt":
+                continue
+            diff = np.array([mine[r["id"]]["lp_detail"] - r["lp_detail"] for r in rows if r["detailizer"] == n])
+            lo, hi = bootstrap_interval(diff)
+            print(f"  quilt − {n}: {diff.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]")
+        spec = np.array([r["lp_detail"] - r["lp_other"] for r in mine.values()])
+        lo, hi = bootstrap_interval(spec)
+        print(f"  quilt style specificity: {spec.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]")
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+
+
+def bootstrap_interval(values: np.ndarray, n: int = 2000, seed: int = 0) -> tuple[float, float]:
+    """95 % percentile bootstrap interval of the mean."""
+    rng = np.random.default_rng(seed)
+    means = values[rng.integers(0, len(values), size=(n, len(values)))].mean(axis=1)
+    return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
+
+
+# --------------------------------------------------------------------------- long word
+
+LONG_RECIPE = """version: 1
+assets:
+  - name: long_word
+    source: {{kind: text, text: {text}, size_m: 0.5, depth_m: 0.12}}
+    grid: {{resolution: {resolution}, max_cells: 512}}
+    regions:
+      - {{parts: ["*"], part: bottom, style: {bottom}}}
+      - {{band: {{from: 0.65}}, part: top, style: {top}}}
+"""
+
+
+def long_grid(text: str, resolution: int, bottom: str, top: str):
+    """The coarse grid of a line of text, voxelized by the pipeline itself."""
+    import tempfile
+
+    from core.recipe_loader import load_recipe
+    from geometry.voxelize import voxelize
+    from pipeline.regions import apply_regions
+    from sources import load_source
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "long.yaml"
+        path.write_text(LONG_RECIPE.format(text=text, resolution=resolution, bottom=bottom, top=top))
+        loaded = load_recipe(path)
+        asset = loaded.recipe.assets[0]
+        grid, _ = apply_regions(voxelize(load_source(asset.source, loaded.base_dir), asset.grid, asset.fit),
+                                asset.regions)
+    return grid
+
+
+def _long_child(name: str, text: str, resolution: int, queue) -> None:
+    import resource
+
+    grid = long_grid(text, resolution, "tower", "druse")
+    det = _detailizer(name, _protocol_set())
+    det.detailize(long_grid("AB", resolution, "tower", "druse"), seed=0)  # warm-up: library, sources
+    t = time.perf_counter()
+    fine = det.detailize(grid, seed=0)
+    seconds = time.perf_counter() - t
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2  # before the measures' own arrays
+    binary = np.asarray(fine.occupancy) > 0.4
+    from core.structure import strict_loose_iou
+
+    strict, loose = strict_loose_iou(binary, grid.occupancy)
+    queue.put({"detailizer": name, "coarse": list(grid.shape), "occupied": grid.count, "seconds": round(seconds, 2),
+               "peak_rss_gb": round(peak, 2),
+               "strict": strict, "loose": loose, **structure(binary, grid.occupancy),
+               **{k: v for k, v in fine.extras.items() if k in ("continuation", "fragments_removed", "bridges")}})
+
+
+def _protocol_set():
+    from evaluation.protocol import load_protocol, resolve_protocol_set
+
+    return resolve_protocol_set(load_protocol())
+
+
+def _in_child(target, *args) -> dict:
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    proc = ctx.Process(target=target, args=(*args, queue))
+    proc.start()
+    result = queue.get()
+    proc.join()
+    return result
+
+
+def long_word(args) -> None:
+    for name in args.detailizers.split(","):
+        print(json.dumps(_in_child(_long_child, name, args.text, args.resolution)), flush=True)
+
+
+# --------------------------------------------------------------------------- speed
+
+
+def _speed_child(name: str, repeats: int, ids: list[str], queue) -> None:
+    import resource
+    import statistics
+
+    from evaluation.benchmarking import house_grid
+    from evaluation.protocol import load_protocol
+
+    out = {"detailizer": name}
+    t = time.perf_counter()
+    if name == "quilt":
+        from model.quilt import QuiltDetailizer
+
+        det = QuiltDetailizer()  # the default set, as a recipe gets it
+        out["load_s"] = round(time.perf_counter() - t, 2)
+        out.update(library_build(det))
+    else:
+        from core.detailizer import get_detailizer
+
+        det = get_detailizer(name, None, "cpu")
+        out["load_s"] = round(time.perf_counter() - t, 2)
+    styles = ("cottage", "pagoda") if name != "upsample" else ("a", "b")
+    protocol = load_protocol()
+    grids = {"house": house_grid(styles, ("bottom", "top"))}
+    grids.update({i: protocol.grid(next(o for o in protocol.outputs if o.id == i)) for i in ids})
+    for key, grid in grids.items():
+        det.detailize(grid, seed=0)  # warm-up: the styles' sources and tables
+        wall, cpu = [], []
+        for seed in range(repeats):
+            t, c = time.perf_counter(), time.process_time()
+            det.detailize(grid, seed=seed)
+            wall.append(time.perf_counter() - t)
+            cpu.append(time.process_time() - c)
+        out[key] = {"median_s": round(statistics.median(wall), 3), "min_s": round(min(wall), 3),
+                    "cpu_s": round(statistics.median(cpu), 3), "cells": int(grid.count)}
+    out["peak_rss_gb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2, 2)
+    out["load_average"] = [round(x, 2) for x in os.getloadavg()]
+    queue.put(out)
+
+
+def library_build(det) -> dict:
+    """Seconds to build everything quilt derives from the set, uncached: the per-exemplar stats (what
+    the disk cache holds), the 8-symmetry tables and the smoothed sources of every exemplar."""
+    from model.quilt import assemble as asm
+    from model.quilt import library as libm
+
+    s = det.style_set
+    t0 = time.perf_counter()
+    stats = libm.load_stats(s, use_cache=False)
+    t1 = time.perf_counter()
+    tables = [libm.build_table(st) for st in stats]
+    t2 = time.perf_counter()
+    for ex in s.exemplars:
+        asm.smooth_source(ex.labels, ex.offset, s.resolution)
+    t3 = time.perf_counter()
+    t4 = time.perf_counter()
+    libm.load_stats(s)  # from the disk cache
+    t5 = time.perf_counter()
+    return {"set": s.name, "exemplars": len(s.exemplars), "entries": int(sum(len(t) for t in tables)),
+            "stats_s": round(t1 - t0, 2), "tables_s": round(t2 - t1, 2), "sources_s": round(t3 - t2, 2),
+            "library_build_s": round(t3 - t0, 2), "stats_from_cache_s": round(t5 - t4, 2)}
+
+
+def speed(args) -> None:
+    ids = [i for i in args.ids.split(",") if i]
+    for name in args.detailizers.split(","):
+        print(json.dumps(_in_child(_speed_child, name, args.repeats, ids)), flush=True)
+
+
+# --------------------------------------------------------------------------- self-reconstruction
+
+
+def exemplar_grid(style_set, name: str):
+    """An exemplar max-pooled to its 16³ coarse grid, each cell with its majority part, in its own style."""
+    from core.grid import EMPTY, LabeledGrid
+
+    full = style_set.get(name).full(style_set.resolution)
+    n = style_set.resolution // 16
+    parts = len(style_set.vocabulary.parts)
+    counts = np.stack([(full == i + 1).reshape(n, 16, n, 16, n, 16).sum(axis=(1, 3, 5)) for i in range(parts)])
+    occ = counts.sum(axis=0) > 0
+    part = np.where(occ, counts.argmax(axis=0), EMPTY).astype(np.int16)
+    return LabeledGrid(occupancy=occ, part=part, style=np.where(occ, 0, EMPTY).astype(np.int16),
+                       part_names=style_set.vocabulary.parts, style_names=(name,), voxel_size_m=0.1), full > 0
+
+
+def selfrec(args) -> None:
+    """Each exemplar max-pooled and detailized in its own style: IOU with the exemplar at 256³ and LP."""
+    style_set = _protocol_set()
+    names = args.names.split(",") if args.names else [e.name for e in style_set.exemplars]
+    dets = {n: _detailizer(n, style_set) for n in args.detailizers.split(",")}
+    rows = []
+    for name in names:
+        grid, truth = exemplar_grid(style_set, name)
+        dicts = {name: style_dictionary(style_set, name, Path(args.cache))}
+        for dn, det in dets.items():
+            fine = det.detailize(grid, seed=0)
+            binary = np.asarray(fine.occupancy) > 0.4
+            iou = float((binary & truth).sum() / (binary | truth).sum())
+            row = {"exemplar": name, "detailizer": dn, "iou_256": round(iou, 3),
+                   **lp_detail(binary, fine.style, grid.style_names, dicts, 0)}
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    print("\n| detailizer | exemplars | IOU at 256³ | LP-detail | LP-own |\n|---|---|---|---|---|")
+    for dn in dets:
+        rs = [r for r in rows if r["detailizer"] == dn]
+        print(f"| {dn} | {len(rs)} | {np.mean([r['iou_256'] for r in rs]):.3f} | "
+              f"{np.mean([r['lp_detail'] for r in rs]):.3f} | {np.mean([r['lp_own'] for r in rs]):.3f} |")
+
+
+# --------------------------------------------------------------------------- previews
+
+TILE_PX = 320
+SHEET_IDS = "text_A/00,cad_arch/04,cad_mushroom/07,mesh_cottage_small/01,text_HI/05,aug_plant/02,text_Q/03,text_A/07"
+
+
+def _tiles(images: list, captions: list[str], tile: int = TILE_PX):
+    from PIL import Image, ImageDraw
+
+    sheet = Image.new("RGB", (len(images) * tile, tile + 22), (255, 255, 255))
+    draw = ImageDraw.Draw(sheet)
+    for i, (image, caption) in enumerate(zip(images, captions)):
+        sheet.paste(image.convert("RGB").resize((tile, tile), Image.LANCZOS), (i * tile, 0))
+        draw.text((i * tile + 6, tile + 5), caption, fill=(0, 0, 0))
+    return sheet
+
+
+def previews(args) -> None:
+    """upsample | quilt | decollage side by side: the showcase assets through the real pipeline, and a
+    sheet of protocol outputs (with the assigned exemplar) rendered by the pipeline's previewer."""
+    import tempfile
+
+    from PIL import Image
+
+    from core.recipe_loader import load_recipe
+    from pipeline.build import build_recipe
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    names = ("upsample", "quilt", "decollage")
+    print("| asset | " + " | ".join(f"{n} strict / loose" for n in names) + " |")
+    print("|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        recipe = load_recipe(ROOT / "recipes" / "showcase.yaml")
+        built = {}
+        for n in names:
+            build_recipe(recipe, Path(tmp) / n, detailizer_override=n)
+            built[n] = {a["name"]: a for a in json.loads((Path(tmp) / n / "manifest.json").read_text())["assets"]}
+        for asset in built["quilt"]:
+            images = [Image.open(Path(tmp) / n / built[n][asset]["outputs"]["preview"]["path"]) for n in names]
+            st = [built[n][asset]["structure"] for n in names]
+            captions = [f"{n}{' (non-learned)' if n != 'decollage' else ' (learned)'}  strict IOU "
+                        f"{x['strict_iou']:.3f}" for n, x in zip(names, st)]
+            _tiles(images, captions).save(out / f"{asset}.png", optimize=True)
+            print(f"| {asset} | " + " | ".join(f"{x['strict_iou']:.3f} / {x['loose_iou']:.3f}" for x in st) + " |")
+    _protocol_sheet(out / "protocol_sheet.png", args.ids.split(","))
+
+
+def _protocol_sheet(path: Path, ids: list[str]) -> None:
+    from PIL import Image
+
+    from core.grid import FineGrid
+    from evaluation.protocol import load_protocol
+    from geometry.preview import render_preview
+    from pipeline.mesh import MeshSettings, mesh_fine_grid
+
+    protocol = load_protocol()
+    style_set = _protocol_set()
+    dets = {n: _detailizer(n, style_set) for n in ("upsample", "quilt", "decollage")}
+    rows = []
+    for oid in ids:
+        out = next(o for o in protocol.outputs if o.id == oid)
+        grid = protocol.grid(out)
+        images = [render_preview(mesh_fine_grid(d.detailize(grid, seed=0), MeshSettings(max_triangles=300_000)))
+                  for d in dets.values()]
+        ex = style_set.get(out.styles["bottom"]).full(style_set.resolution) > 0
+        images.append(render_preview(mesh_fine_grid(FineGrid(
+            occupancy=ex.astype(np.float32), style=np.zeros(ex.shape, np.int16), style_names=("exemplar",),
+            voxel_size_m=0.01), MeshSettings(max_triangles=300_000))))
+        styles = "/".join(dict.fromkeys(out.styles.values()))
+        rows.append(_tiles(images, [f"{oid} upsample", f"quilt ({styles})", "decollage", f"exemplar {out.styles['bottom']}"],
+                           tile=240))
+    sheet = Image.new("RGB", (rows[0].width, sum(r.height for r in rows)), (255, 255, 255))
+    y = 0
+    for r in rows:
+        sheet.paste(r, (0, y))
+        y += r.height
+    sheet.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)  # a third of the bytes
+    print(f"wrote {path}")
+
+
+# --------------------------------------------------------------------------- a user's own style
+
+IMPORT_RECIPE = """version: 1
+defaults:
+  detailize: {{detailizer: quilt, checkpoint: {set_name}, seed: 0}}
+assets:
+  - name: hi_{style}
+    source: {{kind: text, text: HI, size_m: 0.5, depth_m: 0.15}}
+    regions:
+      - {{parts: ["*"], part: body, style: {style}}}
+      - {{band: top, part: roof, style: {style}}}
+"""
+
+
+def user_meshes(folder: Path) -> None:
+    """Two exemplars a user might export: a colonnade hall and a ribbed tower, parts body/roof as GLB nodes."""
+    import trimesh
+
+    def moved(mesh, offset):
+        mesh.apply_translation(offset)
+        return mesh
+
+    hall = [moved(trimesh.creation.box((2.0, 0.2, 1.2)), (0, 0.1, 0))]
+    hall += [moved(trimesh.creation.cylinder(0.07, 1.0, sections=24), (x, 0.7, z))
+             for x in np.linspace(-0.9, 0.9, 8) for z in (-0.5, 0.5)]
+    hall += [moved(trimesh.creation.box((1.6, 0.9, 0.8)), (0, 0.65, 0))]
+    roof = [moved(trimesh.creation.box((2.1, 0.12, 1.3)), (0, 1.26, 0)),
+            moved(trimesh.creation.cone(0.9, 0.5, sections=4), (0, 1.32, 0))]
+    tower = [moved(trimesh.creation.cylinder(0.35, 2.0, sections=32), (0, 1.0, 0))]
+    tower += [moved(trimesh.creation.annulus(0.34, 0.42, 0.06, sections=32), (0, y, 0))
+              for y in np.arange(0.2, 2.0, 0.25)]
+    spire = [moved(trimesh.creation.cone(0.45, 0.8, sections=32), (0, 2.0, 0))]
+    for name, parts in (("hall", {"body": hall, "roof": roof}), ("ribbed_tower", {"body": tower, "roof": spire})):
+        scene = trimesh.Scene()
+        for part, meshes in parts.items():
+            for i, mesh in enumerate(meshes):
+                scene.add_geometry(mesh, node_name=f"{part}_{i}", geom_name=f"{part}_{i}_g")
+        scene.export(folder / f"{name}.glb")
+
+
+def import_to_asset(args) -> None:
+    """Wall time from ``decollage styles import`` of a mesh folder to the first asset built with quilt."""
+    import tempfile
+
+    exe = str(Path(sys.executable).with_name("decollage"))
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        meshes = tmp / "meshes"
+        meshes.mkdir()
+        user_meshes(meshes)
+        env = {**os.environ, "DECOLLAGE_STYLES_DIR": str(tmp / "styles")}
+        (tmp / "recipe.yaml").write_text(IMPORT_RECIPE.format(set_name="mine", style="hall"))
+        t0 = time.perf_counter()
+        subprocess.run([exe, "styles", "import", str(meshes), "--name", "mine", "--vocab", "things"], env=env,
+                       check=True, capture_output=True)
+        t1 = time.perf_counter()
+        subprocess.run([exe, "build", str(tmp / "recipe.yaml"), "-o", str(tmp / "out")], env=env, check=True,
+                       capture_output=True)
+        t2 = time.perf_counter()
+        manifest = json.loads((tmp / "out" / "manifest.json").read_text())
+        timings = manifest["assets"][0].get("timings_s")
+        print(json.dumps({"import_s": round(t1 - t0, 1), "build_s": round(t2 - t1, 1), "total_s": round(t2 - t0, 1),
+                          "asset_timings_s": timings, "load": os.getloadavg()[0]}))
+        if args.keep:
+            import shutil
+
+            Path(args.keep).mkdir(parents=True, exist_ok=True)
+            for f in (tmp / "out").glob("*.png"):
+                shutil.copy(f, Path(args.keep) / f.name)
+
+
+def main(argv: list[str]) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    q = sub.add_parser("quality")
+    q.add_argument("--limit", type=int, default=16)
+    q.add_argument("--ids", default="")
+    q.add_argument("--split", default="")
+    q.add_argument("--detailizers", default="quilt,upsample")
+    q.add_argument("--cache", default=os.environ.get("QUILT_BENCH_CACHE", "/tmp/quilt-bench-cache"))
+    q.add_argument("--json", default="")
+    lw = sub.add_parser("long")
+    lw.add_argument("--text", default="QUILTEDLETTERSINAROW")
+    lw.add_argument("--resolution", type=int, default=17)
+    lw.add_argument("--detailizers", default="quilt,upsample")
+    sp = sub.add_parser("speed")
+    sp.add_argument("--repeats", type=int, default=5)
+    sp.add_argument("--ids", default="text_A/00,cad_mushroom/08,mesh_cottage/00")
+    sp.add_argument("--detailizers", default="quilt,upsample,decollage")
+    sr = sub.add_parser("selfrec")
+    sr.add_argument("--names", default="")
+    sr.add_argument("--detailizers", default="quilt,upsample")
+    sr.add_argument("--cache", default=os.environ.get("QUILT_BENCH_CACHE", "/tmp/quilt-bench-cache"))
+    pv = sub.add_parser("previews")
+    pv.add_argument("--out", default=str(ROOT / "docs" / "previews" / "quilt"))
+    pv.add_argument("--ids", default=SHEET_IDS)
+    im = sub.add_parser("import")
+    im.add_argument("--keep", default="", help="copy the built previews here")
+    args = ap.parse_args(argv)
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
+    {"quality": quality, "long": long_word, "import": import_to_asset, "speed": speed,
+     "previews": previews, "selfrec": selfrec}[args.cmd](args)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

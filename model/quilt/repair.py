@@ -1,0 +1,311 @@
+"""Structure repair: no floating fragments, no enclosed cavities, and material in every occupied coarse cell.
+
+Role: after assembly, make the binarised output (field ≥ ISO_LEVEL) one
+6-connected body per 6-connected component of the coarse content, touching
+every occupied coarse cell, while changing as little as possible.
+
+Components are found without labelling the whole fine grid (a long word's
+output has ~10⁸ voxels): each occupied cell's block is labelled on its own
+(16³), blocks are joined where their voxels touch across a shared face, and
+the graph's connected components are the fine components
+(``scipy.sparse.csgraph``). Per coarse component the largest fine component
+is the *main body*. Then:
+
+* a fragment (another component) is removed when every cell it touches also
+  holds main material; otherwise it is the only material of some cell and is
+  kept and *bridged*;
+* enclosed cavities (empty voxels not connected to the outside through the
+  empty space of the cells and the empty coarse cells) are filled;
+* a cell without main material (a kept fragment, or no material at all) is
+  joined to the main body by a tube (radius ``TUBE_RADIUS`` voxels) along the
+  shortest path of occupied cells to a cell holding main material: from its
+  own material through the cell centres of the path to the main material of
+  the last cell. The path only crosses occupied cells, so the tube never
+  leaves the coarse shape.
+
+Thin content (a 1-cell rod, a single cell, a 1-cell wall) keeps its material:
+a cell can lose material only to removal of fragments that other main
+material replaces. ``repair`` reports what it did (fragments removed, tubes).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from core.grid import ISO_LEVEL
+from model.quilt.library import CELL, DIRS
+
+_FULL_LABEL = np.ones((CELL, CELL, CELL), dtype=np.int32)
+_FULL_SIZE = np.array([CELL**3])
+_FULL_FACES = {d: np.ones((CELL, CELL), dtype=np.int32) for d in range(6)}
+#: Tube radius of a bridge, fine voxels.
+TUBE_RADIUS = 2.5
+_SIX = ndimage.generate_binary_structure(3, 1)
+
+
+@dataclass(frozen=True, eq=False)
+class Cells:
+    """Every occupied coarse cell (C order) with its face neighbours' ids (−1 empty or beyond the grid)."""
+
+    occ: np.ndarray
+    cells: np.ndarray
+    ids: np.ndarray  # (X, Y, Z) cell id or -1
+    nb: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.cells)
+
+
+def cell_graph(occ: np.ndarray) -> Cells:
+    cells = np.argwhere(occ)
+    ids = np.full(np.add(occ.shape, 2), -1, dtype=np.int64)
+    ids[1:-1, 1:-1, 1:-1][occ] = np.arange(len(cells))
+    nb = np.stack([ids[tuple((cells + 1 + DIRS[d]).T)] for d in range(6)], axis=1)
+    return Cells(occ=occ, cells=cells, ids=ids[1:-1, 1:-1, 1:-1], nb=nb)
+
+
+def _block(fine: np.ndarray, cell: np.ndarray) -> np.ndarray:
+    i, j, k = (int(c) * CELL for c in cell)
+    return fine[i:i + CELL, j:j + CELL, k:k + CELL]
+
+
+_FACE_INDEX = [(0,), (-1,), (slice(None), 0), (slice(None), -1), (Ellipsis, 0), (Ellipsis, -1)]
+
+
+def _face(a: np.ndarray, d: int) -> np.ndarray:
+    """The layer of a (CELL³) array on face d (−x, +x, −y, +y, −z, +z), copied (a view would keep the
+    whole label array of every cell alive: ~280 MB on a long word)."""
+    return a[_FACE_INDEX[d]].copy()
+
+
+def fine_components(fine: np.ndarray, content: Cells, empty: bool = False, cache: dict | None = None):
+    """(node offsets per cell, node sizes, node → component id, n components) of the binarised output.
+
+    Node ``offsets[q] + l - 1`` is local component l of cell q's block (6-connected). With
+    ``empty`` the components are those of the empty voxels inside occupied cells, and one more
+    node (the last, id ``offsets[-1]``) stands for the outside: every local component that
+    touches a face whose coarse neighbour is empty or beyond the grid is joined to it.
+    ``cache`` (cell → its local labelling) is filled and reused: a repair round drops the cells it
+    changed, so later rounds relabel only those.
+    """
+    n = len(content)
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    faces: list[dict[int, np.ndarray]] = []
+    sizes = []
+    cache = {} if cache is None else cache
+    for q, cell in enumerate(content.cells):
+        if q in cache:
+            m, size_q, faces_q = cache[q]
+            offsets[q + 1] = offsets[q] + m
+            if m:
+                sizes.append(size_q)
+            faces.append(faces_q)
+            continue
+        block = _block(fine, cell)
+        lo, hi = block.min(), block.max()
+        if (lo >= ISO_LEVEL) != empty and (hi >= ISO_LEVEL) != empty:  # all one component: no labelling
+            lab, m = _FULL_LABEL, 1
+        elif (lo >= ISO_LEVEL) == empty and (hi >= ISO_LEVEL) == empty:  # none
+            lab, m = None, 0
+        else:
+            lab, m = ndimage.label(block < ISO_LEVEL if empty else block >= ISO_LEVEL, structure=_SIX)
+        offsets[q + 1] = offsets[q] + m
+        if lab is _FULL_LABEL:
+            size_q, faces_q = _FULL_SIZE, _FULL_FACES
+        elif m:
+            small = np.uint8 if m < 255 else np.int32  # kept for every cell: the smallest type that fits
+            size_q = np.bincount(lab.reshape(-1), minlength=m + 1)[1:]
+            faces_q = {d: _face(lab, d).astype(small, copy=False) for d in range(6)}
+        else:
+            size_q, faces_q = None, {}
+        if m:
+            sizes.append(size_q)
+        faces.append(faces_q)
+        cache[q] = (m, size_q, faces_q)
+    total = int(offsets[-1])
+    rows, cols = [], []
+    for q in range(n):
+        if not faces[q]:
+            continue
+        for d in range(6):
+            r = content.nb[q, d]
+            a = faces[q][d]
+            if r < 0:
+                if empty:  # open face: its empty voxels are outside
+                    hit = np.unique(a[a > 0])
+                    rows.append(offsets[q] - 1 + hit)
+                    cols.append(np.full(len(hit), total))
+                continue
+            if d % 2 == 0 or not faces[r]:
+                continue
+            b = faces[r][d ^ 1]
+            touch = (a > 0) & (b > 0)
+            if touch.any():  # repeated pairs are harmless: the graph only needs the edges
+                rows.append(offsets[q] - 1 + a[touch])
+                cols.append(offsets[r] - 1 + b[touch])
+    size_n = total + (1 if empty else 0)
+    r_ = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
+    c_ = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
+    graph = coo_matrix((np.ones(len(r_)), (r_, c_)), shape=(size_n, size_n))
+    n_comp, comp = connected_components(graph, directed=False) if size_n else (0, np.zeros(0, dtype=np.int64))
+    size = np.concatenate(sizes) if total else np.zeros(0, dtype=np.int64)
+    return offsets, size, comp, n_comp
+
+
+def fill_cavities(fine: np.ndarray, content: Cells) -> int:
+    """Fill empty pockets enclosed by material (not connected to the outside) in place; returns how many."""
+    offsets, _, comp, _ = fine_components(fine, content, empty=True)
+    total = int(offsets[-1])
+    if total == 0:
+        return 0
+    enclosed = comp[:total] != comp[total]
+    node_cell = np.repeat(np.arange(len(content)), np.diff(offsets))
+    for q in np.unique(node_cell[enclosed]):
+        block = _block(fine, content.cells[q])
+        lab, _ = ndimage.label(block < ISO_LEVEL, structure=_SIX)
+        fill = [l + 1 for l in range(offsets[q + 1] - offsets[q]) if enclosed[offsets[q] + l]]
+        block[np.isin(lab, fill)] = 1.0
+    return len(np.unique(comp[:total][enclosed]))
+
+
+def _tube(fine: np.ndarray, content: Cells, points: list[np.ndarray], radius: float = TUBE_RADIUS) -> set[int]:
+    """Raise ``fine`` to a smooth tube profile along the polyline ``points`` (fine voxel coordinates),
+    only inside occupied coarse cells (a tube that ends at a cell face must not bulge into an empty one).
+    Returns the ids of the cells it may have changed."""
+    occ, touched = content.occ, set()
+    for a, b in zip(points[:-1], points[1:]):
+        a, b = a.astype(np.float64), b.astype(np.float64)
+        lo = np.maximum(np.floor(np.minimum(a, b) - radius - 1).astype(int), 0)
+        hi = np.minimum(np.ceil(np.maximum(a, b) + radius + 2).astype(int), fine.shape)
+        grid = np.stack(np.meshgrid(*[np.arange(l, h) + 0.5 for l, h in zip(lo, hi)], indexing="ij"), axis=-1)
+        ab = b - a
+        t = np.clip(((grid - a) @ ab) / max(float(ab @ ab), 1e-9), 0.0, 1.0)
+        dist = np.linalg.norm(grid - (a + t[..., None] * ab), axis=-1)
+        value = np.clip(radius + 0.5 - dist, 0.0, 1.0).astype(np.float32)
+        cell = [np.arange(l, h) // CELL for l, h in zip(lo, hi)]
+        value *= occ[np.ix_(*cell)]
+        box = content.ids[tuple(slice(c[0], c[-1] + 1) for c in cell)]
+        touched.update(int(i) for i in box[box >= 0])
+        region = fine[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
+        np.maximum(region, value, out=region)
+    return touched
+
+
+def _nearest_voxel(mask: np.ndarray, cell: np.ndarray) -> np.ndarray:
+    """Fine coordinates (voxel centre) of the voxel of ``mask`` (a cell block) nearest the cell centre."""
+    idx = np.argwhere(mask)
+    centre = (CELL - 1) / 2.0
+    best = idx[np.argmin(((idx - centre) ** 2).sum(axis=1))]
+    return cell * CELL + best + 0.5
+
+
+#: Rounds of fragment removal and bridging (a cell bridged in one round lets the next remove the
+#: other fragments it held).
+ROUNDS = 3
+
+
+def repair(fine: np.ndarray, occ: np.ndarray) -> dict:
+    """Remove or bridge fragments and fill cavities in place (see module docstring); returns counts."""
+    content = cell_graph(occ)
+    coarse_lab, n_coarse = ndimage.label(occ, structure=_SIX)
+    cell_comp = coarse_lab[tuple(content.cells.T)]
+    removed = tubes = 0
+    cache: dict = {}
+    for _ in range(ROUNDS):
+        offsets, size, comp, n_comp = fine_components(fine, content, cache=cache)
+        if n_comp <= n_coarse:
+            break
+        r, t, changed = _repair_round(fine, content, cell_comp, offsets, size, comp)
+        removed, tubes = removed + r, tubes + t
+        if t == 0:
+            break  # removing whole fragments cannot split what is left: one body per coarse component
+        for q in changed:
+            cache.pop(q, None)
+    return {"fragments_removed": removed, "bridges": tubes, "cavities_filled": fill_cavities(fine, content)}
+
+
+def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, int, set[int]]:
+    """One round: remove fragments whose cells all hold main material, bridge cells that hold none.
+    Returns (fragments removed, tubes, the cells whose voxels changed)."""
+    node_cell = np.repeat(np.arange(len(content)), np.diff(offsets))
+    # main fine component per coarse component: the largest by voxels
+    main_of = {}
+    comp_size = np.bincount(comp, weights=size) if len(comp) else np.zeros(0)
+    for cc in np.unique(cell_comp):
+        nodes = np.flatnonzero(cell_comp[node_cell] == cc)
+        if len(nodes):
+            comps = np.unique(comp[nodes])
+            main_of[int(cc)] = int(comps[np.argmax(comp_size[comps])])
+    main_lut = np.full(int(cell_comp.max()) + 1, -1, dtype=np.int64)
+    for cc, m in main_of.items():
+        main_lut[cc] = m
+    node_main = comp == main_lut[cell_comp[node_cell]]
+    has_main = np.zeros(len(content), dtype=bool)
+    has_main[node_cell[node_main]] = True
+    # fragments: removable when every cell they touch holds main material
+    frag_cells: dict[int, set[int]] = {}
+    for i in np.flatnonzero(~node_main):
+        frag_cells.setdefault(int(comp[i]), set()).add(int(node_cell[i]))
+    removable = {c for c, cells in frag_cells.items() if all(has_main[q] for q in cells)}
+    removed = 0
+    changed: set[int] = set()
+    for q in sorted({q for c in removable for q in frag_cells[c]}):
+        changed.add(q)
+        block = _block(fine, content.cells[q])
+        lab, _ = ndimage.label(block >= ISO_LEVEL, structure=_SIX)
+        nodes = offsets[q] + np.arange(offsets[q + 1] - offsets[q])
+        drop = [l + 1 for l, node in enumerate(nodes) if int(comp[node]) in removable]
+        if drop:
+            block[np.isin(lab, drop)] = 0.0
+            removed += len(drop)
+    # bridges for cells without main material
+    tubes = 0
+    for q in np.flatnonzero(~has_main):
+        if has_main[q]:
+            continue  # reached by an earlier tube
+        path = _path_to_main(content, has_main, q)
+        if path is None:
+            continue  # a coarse component whose main body is this cell's own material
+        cell = content.cells[q]
+        own = _block(fine, cell) >= ISO_LEVEL
+        start = [_nearest_voxel(own, cell)] if own.any() else []
+        centres = [content.cells[p] * CELL + CELL / 2.0 for p in path]
+        last = content.cells[path[-1]]
+        main_mask = _main_mask(fine, content, offsets, node_main, path[-1])
+        end = [_nearest_voxel(main_mask, last)] if main_mask.any() else []  # else a tube's cell: its centre
+        changed |= _tube(fine, content, start + centres + end)
+        has_main[path[:-1]] = True
+        tubes += 1
+    return removed, tubes, changed
+
+
+def _main_mask(fine, content, offsets, node_main, q) -> np.ndarray:
+    block = _block(fine, content.cells[q])
+    lab, _ = ndimage.label(block >= ISO_LEVEL, structure=_SIX)
+    keep = [l + 1 for l in range(offsets[q + 1] - offsets[q]) if node_main[offsets[q] + l]]
+    return np.isin(lab, keep)
+
+
+def _path_to_main(content: Cells, has_main: np.ndarray, start: int) -> list[int] | None:
+    """Cells from ``start`` to the nearest cell holding main material (breadth-first, fixed order), or None."""
+    parent = {start: -1}
+    queue = deque([start])
+    while queue:
+        q = queue.popleft()
+        if has_main[q] and q != start:
+            path = [q]
+            while parent[path[-1]] != -1:
+                path.append(parent[path[-1]])
+            return path[::-1]
+        for d in range(6):
+            r = int(content.nb[q, d])
+            if r >= 0 and r not in parent:
+                parent[r] = q
+                queue.append(r)
+    return None
