@@ -178,7 +178,7 @@ class JobRunner:
             return
         entry = report.entry()
         outputs = {kind: url + out["path"] for kind, out in report.outputs.items()}
-        self._set(job, JobState.DONE, glb_url=outputs.get("glb"), png_url=outputs.get("png"),
+        self._set(job, JobState.DONE, glb_url=outputs.get("glb"), png_url=outputs.get("preview"),
                   glb_sha256=report.outputs.get("glb", {}).get("sha256"), outputs=outputs, entry=entry,
                   build_s=round(time.perf_counter() - t2, 3), total_s=round(time.perf_counter() - job.submitted, 3))
 

@@ -22,6 +22,13 @@ const fine = new Viewer($('fine'));
 const grid = new VoxelGrid(coarse);
 studio.coarse = coarse;
 studio.fine = fine;
+// Where voxel i's centre is on screen (client pixels): for scripted use of the brush (tests, benchmarks).
+studio.screenOf = (i) => {
+  const [x, y, z] = grid.cell(i);
+  const v = new THREE.Vector3(x + 0.5, y + 0.5, z + 0.5).project(coarse.camera);
+  const rect = coarse.canvas.getBoundingClientRect();
+  return [rect.left + (v.x + 1) / 2 * rect.width, rect.top + (1 - v.y) / 2 * rect.height];
+};
 
 // ------------------------------------------------------------------ small helpers
 

@@ -35,7 +35,7 @@ function figures(a) {
 }
 
 function card(a) {
-  const png = a.outputs && a.outputs.png;
+  const png = a.outputs && (a.outputs.preview || a.outputs.png);
   const failed = a.status !== 'built';
   const node = el('article', { class: 'card' + (failed ? ' failed' : ''), tabindex: 0, 'data-name': a.name,
     onclick: () => select(a), onkeydown: (e) => { if (e.key === 'Enter') select(a); } },
