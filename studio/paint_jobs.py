@@ -4,8 +4,8 @@ Role: run one painted asset through the detailizer and the build, one job at a
 time in a worker thread, newest first. A job has two results:
 
 1. **preview**: the detailizer's fine grid (``core/detailizer.py``), meshed at
-   half its resolution (2×2×2 mean of the fine occupancy, the same iso level
-   and style colours, ``pipeline/mesh.py``) without decimation, as a GLB; for
+   half its resolution (a quarter or less for grids over 128³: ``preview_glb``)
+   with the same iso level and style colours, without decimation, as a GLB; for
    the fast detailizers this is on screen about a second after the edit;
 2. **exact**: ``pipeline/build.py``'s ``build_asset`` on a one-asset recipe that
    holds the edited asset (same source, rules, detailizer, export settings), so
@@ -32,14 +32,18 @@ import numpy as np
 
 from core.detailizer import get_detailizer
 from core.errors import DecollageError
-from core.grid import FineGrid, LabeledGrid
+from core.grid import ISO_LEVEL, FineGrid, LabeledGrid
 from core.recipe_loader import LoadedRecipe
 from pipeline.build import Progress, build_asset, check_recipe
-from pipeline.mesh import MeshSettings, mesh_fine_grid
+from pipeline.mesh import crop_padded, marching_cubes
+from pipeline.palette import palette_rgba
 from pipeline.report import AssetStatus
 
 #: Finished jobs whose files stay in the scratch folder.
 KEEP_JOBS = 6
+
+#: Largest preview grid (voxels): 128³, the fine grid of a 16³ asset at half resolution.
+PREVIEW_VOXELS = 128**3
 
 #: Held while sources, voxelization, detailizers and builds run: the detailizer registry's cache and the
 #: CAD kernel are not thread-safe, so the job worker and the page's requests take turns.
@@ -72,19 +76,38 @@ class Job:
         return {"id": self.id, "state": self.state.value, **self.result}
 
 
-def half_resolution(fine: FineGrid) -> FineGrid:
-    """The fine grid at half resolution: 2×2×2 means of the occupancy, the style of each block's first voxel."""
-    x, y, z = (s // 2 for s in fine.shape)
-    occ = fine.occupancy[: 2 * x, : 2 * y, : 2 * z].reshape(x, 2, y, 2, z, 2).mean(axis=(1, 3, 5))
-    return FineGrid(occupancy=occ.astype(np.float32), style=np.ascontiguousarray(fine.style[::2, ::2, ::2][:x, :y, :z]),
-                    style_names=fine.style_names, voxel_size_m=fine.voxel_size_m * 2, origin_m=fine.origin_m,
-                    detailizer=fine.detailizer)
+def preview_factor(shape: tuple[int, int, int]) -> int:
+    """How much coarser than the fine grid the preview is: 2, or more for grids over ``PREVIEW_VOXELS``."""
+    factor = 2
+    while int(np.prod([-(-s // factor) for s in shape])) > PREVIEW_VOXELS and factor < 16:
+        factor *= 2
+    return factor
 
 
-def preview_glb(fine: FineGrid) -> tuple[bytes, int]:
-    """(GLB bytes, triangles) of the half-resolution, undecimated, style-coloured preview mesh."""
-    mesh = mesh_fine_grid(half_resolution(fine), MeshSettings(max_triangles=None))
-    return mesh.export(file_type="glb"), len(mesh.faces)
+def preview_glb(fine: FineGrid) -> tuple[bytes, int, int]:
+    """(GLB bytes, triangles, factor) of the preview mesh: the fine field at 1/factor resolution.
+
+    The occupancy is averaged over factor³ blocks, meshed by marching cubes at
+    ``ISO_LEVEL`` (``pipeline/mesh.py``'s crop and mesher), not decimated, and
+    each vertex takes the palette colour (``pipeline/palette.py``) of the style
+    in its block. Vertices in metres, same frame as the fine grid (no pivot).
+    """
+    import trimesh
+
+    f = preview_factor(fine.shape)
+    x, y, z = (s // f for s in fine.shape)
+    occ = fine.occupancy[: f * x, : f * y, : f * z].reshape(x, f, y, f, z, f).mean(axis=(1, 3, 5), dtype=np.float32)
+    crop, start = crop_padded(occ, ISO_LEVEL)
+    verts, faces = marching_cubes(crop, ISO_LEVEL)
+    verts += start - 1
+    style = fine.style[::f, ::f, ::f][:x, :y, :z]
+    idx = np.clip(np.floor(verts + 0.5).astype(np.int64), 0, np.asarray(style.shape) - 1)
+    styles = style[idx[:, 0], idx[:, 1], idx[:, 2]].astype(np.int64)
+    neutral = len(fine.style_names)
+    colors = palette_rgba(fine.style_names)[np.where((styles >= 0) & (styles < neutral), styles, neutral)]
+    positions = np.asarray(fine.origin_m) + (verts + 0.5) * (fine.voxel_size_m * f)
+    mesh = trimesh.Trimesh(positions, faces, vertex_colors=colors, process=False)
+    return mesh.export(file_type="glb", include_normals=False), len(faces), f
 
 
 class JobRunner:
@@ -162,10 +185,10 @@ class JobRunner:
         t0 = time.perf_counter()
         fine = detailizer.detailize(job.grid, seed=settings.seed)
         t1 = time.perf_counter()
-        glb, triangles = preview_glb(fine)
+        glb, triangles, factor = preview_glb(fine)
         (folder / "preview.glb").write_bytes(glb)
         t2 = time.perf_counter()
-        self._set(job, JobState.PREVIEW, preview_url=url + "preview.glb", preview_triangles=triangles,
+        self._set(job, JobState.PREVIEW, preview_url=url + "preview.glb", preview_triangles=triangles, preview_factor=factor,
                   detailizer=detailizer.describe(), learned=bool(detailizer.learned),
                   preview_timings_s={"detailize": round(t1 - t0, 3), "preview_mesh": round(t2 - t1, 3),
                                      "since_submit": round(t2 - job.submitted, 3)})

@@ -8,7 +8,7 @@ shown. Routes (``studio/http.py`` adds the safety rules):
 - ``GET /api/session``: the recipe, its assets (variant? script?), the detailizers of the registry;
 - ``GET /api/asset?name=A``: the asset's coarse grid (``studio/paint_grid.py``);
 - ``GET /api/detailizer?name=D&asset=A``: what detailizer D accepts (styles, parts; null = any);
-- ``POST /api/palette``: ``{styles}`` → the colours the GLB will use;
+- ``POST /api/palette``: ``{asset, target}`` (or ``{styles}``) → the colours the GLB will use;
 - ``POST /api/detailize``: ``{asset, detailizer, target}`` → a job (``studio/paint_jobs.py``);
 - ``GET /api/job?id=N``: the job's state, preview and exact GLB URLs, sha256, manifest entry;
 - ``POST /api/save``: ``{asset, detailizer, target, recipe_sha256}`` → the recipe file rewritten
@@ -58,6 +58,7 @@ class PaintSession:
         self.runner = JobRunner(self.scratch)
         self._lock = threading.Lock()
         self._grids: dict[tuple[str, str], AssetGrid] = {}
+        self._recipe: tuple[LoadedRecipe, str] | None = None
 
     def close(self) -> None:
         """Stop the worker and remove the scratch folder."""
@@ -67,9 +68,20 @@ class PaintSession:
     # ------------------------------------------------------------------ reading
 
     def loaded(self) -> tuple[LoadedRecipe, str]:
-        """The recipe as it is on disk now, and its text's sha256."""
+        """The recipe as it is on disk now, and its text's sha256 (parsed again only when the text changed)."""
+        try:
+            sha = digest(self.path.read_bytes().decode("utf-8", errors="replace"))
+        except OSError:
+            sha = None  # load_recipe says what is wrong
+        with self._lock:
+            cached = self._recipe
+        if cached is not None and cached[1] == sha:
+            return cached
         loaded = load_recipe(self.path)
-        return loaded, digest(loaded.text)
+        sha = digest(loaded.text)
+        with self._lock:
+            self._recipe = (loaded, sha)
+        return loaded, sha
 
     def grid(self, name: str) -> tuple[AssetGrid, LoadedRecipe, str]:
         """Asset ``name`` loaded up to its labeled grid (kept while the recipe text is unchanged)."""
@@ -148,6 +160,21 @@ class PaintSession:
             raise StudioError("the edited asset does not survive a round trip through the schema (please report it)")
         return LoadedRecipe(recipe, self.path, text)
 
+    def palette_json(self, body: object) -> dict:
+        """Colours of the styles as the GLB will have them: in the order the edited rules give (slots depend on it).
+
+        ``body``: ``{asset, target, extra}`` (the page's labels, plus names not used yet) or ``{styles}``.
+        """
+        if isinstance(body, dict) and "target" in body:
+            grid, _, _, _, asset = self.edited(body)
+            names = list(relabel(grid, list(asset.regions)).style_names)
+            extra = body.get("extra") or []
+        else:
+            names, extra = [], body.get("styles") if isinstance(body, dict) else None
+        if not isinstance(extra, list) or not all(isinstance(s, str) and 0 < len(s) <= 100 for s in extra):
+            raise StudioError("styles: expected a list of names")
+        return palette(names + [s for s in dict.fromkeys(extra[:4096]) if s not in names])
+
     def detailize(self, body: object) -> dict:
         grid, _, _, edits, asset = self.edited(body)
         job = self.runner.submit(self.one_asset_recipe(asset), relabel(grid, list(asset.regions)))
@@ -190,12 +217,6 @@ def painter_app(session: PaintSession) -> App:
             raise HttpError(HTTPStatus.NOT_FOUND, "no such job (finished jobs are kept for a while only)")
         return Response.json(snapshot)
 
-    def palette_route(request: Request) -> Response:
-        styles = request.body.get("styles") if isinstance(request.body, dict) else None
-        if not isinstance(styles, list) or not all(isinstance(s, str) and 0 < len(s) <= 100 for s in styles):
-            raise StudioError("styles: expected a list of names")
-        return Response.json(palette(styles[:4096]))
-
     def need(request: Request, key: str) -> str:
         value = request.arg(key)
         if not value:
@@ -207,7 +228,7 @@ def painter_app(session: PaintSession) -> App:
         ("GET", "/api/asset"): lambda r: Response.json(session.asset_json(need(r, "name"))),
         ("GET", "/api/detailizer"): lambda r: Response.json(session.detailizer_json(need(r, "name"), r.arg("asset"))),
         ("GET", "/api/job"): job,
-        ("POST", "/api/palette"): palette_route,
+        ("POST", "/api/palette"): lambda r: Response.json(session.palette_json(r.body)),
         ("POST", "/api/detailize"): lambda r: Response.json(session.detailize(r.body)),
         ("POST", "/api/save"): lambda r: Response.json(session.save(r.body)),
     })

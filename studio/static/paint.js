@@ -58,9 +58,11 @@ function options(select, values, current, extra = []) {
   if (current != null) select.value = current;
 }
 
+// Palette slots depend on the order the rules give the styles, so the server compiles the labels to say
+// which colour each style will have in the GLB (pipeline/palette.py).
 async function refreshPalette() {
-  const missing = [...S.styleNames, ...S.extraStyles].filter((s) => !S.palette[s]);
-  if (missing.length) Object.assign(S.palette, await postJSON('/api/palette', { styles: [...S.styleNames, ...S.extraStyles] }));
+  if (!S.asset) return;
+  S.palette = await postJSON('/api/palette', { asset: S.asset.name, target: target(), extra: styleChoices() });
 }
 
 function target() {
@@ -99,7 +101,8 @@ function refreshParts() {
     });
     const sw = el('i', { class: 'swatch' });
     const labels = [...new Set(members.map((i) => S.partNames[S.part[i]]))];
-    sw.style.background = `rgb(${(bySource ? styleRGB(current || S.styleNames[S.style[members[0]]]) : partRGB(name)).join(',')})`;
+    const byStyle = $('color-by').value === 'style';
+    sw.style.background = `rgb(${(byStyle || bySource ? styleRGB(current || S.styleNames[S.style[members[0]]]) : partRGB(name)).join(',')})`;
     rows.push(el('div', { class: 'part-row' }, sw,
       el('span', { text: `${name} (${members.length})` + (bySource ? ` → ${labels.join(', ')}` : '') }), select));
   });
@@ -145,12 +148,13 @@ async function edit(change, { record = true } = {}) {
   change();
   S.dirty = true;
   S.lastEditAt = performance.now();
-  await refreshPalette().catch(fail);
-  refreshAll();
   if ($('live').checked) {
     clearTimeout(S.liveTimer);
-    S.liveTimer = setTimeout(() => detailize('edit'), 80);
+    S.liveTimer = setTimeout(() => detailize('edit'), 0);  // one request for a burst of edits
   }
+  refreshAll();
+  await refreshPalette().catch(fail);
+  refreshAll();
 }
 
 function paintVoxels(indices) {
@@ -269,14 +273,17 @@ async function detailize(trigger = 'button') {
   try {
     job = await postJSON('/api/detailize', { asset: name, detailizer: $('detailizer').value, target: target() });
   } catch (err) { if (seq === S.seq) fail(err); return; }
-  const timing = { trigger, detailizer: $('detailizer').value, asset: name };
+  const timing = { trigger, detailizer: $('detailizer').value, asset: name,
+    posted_ms: Math.round(performance.now() - t0) };
   let previewShown = false;
   for (;;) {
     let j;
     try { j = await getJSON(`/api/job?id=${job.job}`); } catch (err) { if (seq === S.seq) fail(err); return; }
     if (seq !== S.seq) return;  // a newer request took over
     if (j.preview_url && !previewShown && (j.state === 'preview' || j.state === 'done')) {
+      timing.seen_ms = Math.round(performance.now() - t0);
       const scene = await fine.loadGLB(j.preview_url);
+      timing.loaded_ms = Math.round(performance.now() - t0);
       if (seq !== S.seq) return;
       await showMesh(scene, S.shownAsset === name);
       S.shownAsset = name;
@@ -346,6 +353,7 @@ async function loadAsset(name) {
     for (const [id, v] of [['x0', 0], ['y0', 0], ['z0', 0], ['x1', X - 1], ['y1', Y - 1], ['z1', Z - 1]]) $(id).value = v;
     $('detailizer').value = data.detailize.detailizer;
     await loadVocab(data.detailize.detailizer);
+    await refreshPalette();
     $('live').checked = !S.vocab.learned;
     $('save').disabled = !data.savable;
     $('save-note').hidden = !data.save_note;
@@ -401,6 +409,7 @@ async function main() {
   $('asset').addEventListener('change', () => loadAsset($('asset').value));
   $('detailizer').addEventListener('change', async () => {
     await loadVocab($('detailizer').value);
+    await refreshPalette().catch(fail);
     $('live').checked = !S.vocab.learned;
     S.dirty = true;
     refreshAll();
@@ -419,7 +428,7 @@ async function main() {
     S.partNames = [...S.asset.part_names];
     S.styleNames = [...S.asset.style_names];
   }));
-  $('color-by').addEventListener('change', recolor);
+  $('color-by').addEventListener('change', refreshAll);
   $('group-by').addEventListener('change', refreshParts);
   for (const t of ['orbit', 'brush', 'region']) $(`tool-${t}`).addEventListener('click', () => setTool(t));
   $('add-style').addEventListener('click', async () => {

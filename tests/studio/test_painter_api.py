@@ -139,3 +139,8 @@ def test_api_rejects_unknown_routes_and_bad_queries(small_recipe):
         assert _call(url, "GET", "/recipes/small.yaml")[0] == 404
         status, palette = _call(url, "POST", "/api/palette", {"styles": ["brick", "moss"]})
         assert status == 200 and len(palette["brick"]) == 3 and palette["brick"] != palette["moss"]
+        _, asset = _call(url, "GET", "/api/asset?name=hut")
+        body = {"asset": "hut", "target": _target(asset, roof="slate"), "extra": ["plum"]}
+        status, palette = _call(url, "POST", "/api/palette", body)
+        assert status == 200 and set(palette) == {"brick", "slate", "plum"}
+        assert _call(url, "POST", "/api/palette", {"styles": "brick"})[0] == 400
