@@ -55,8 +55,8 @@ def measure(page, url: str, asset: str, edits: int, learned: bool) -> dict:
     page.select_option("#asset", asset)
     wait(page, f"window.studio.state.asset && window.studio.state.asset.name === {asset!r}")
     page.select_option("#detailizer", "upsample")
-    wait(page, "!window.studio.state.vocab.learned")
-    page.check("#live")
+    # Choosing a fast detailizer turns live on by itself (after it asked the server what it accepts).
+    wait(page, "!window.studio.state.vocab.learned && document.getElementById('live').checked")
     page.click("#detailize")
     wait(page, "window.studio.timings.length >= 1")
     part = page.evaluate("window.studio.state.partNames[window.studio.state.part[window.studio.state.count - 1]]")

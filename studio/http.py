@@ -123,8 +123,11 @@ def clean_segments(raw_path: str) -> list[str]:
     not_found = HttpError(HTTPStatus.NOT_FOUND, "not found")
     if not raw_path.startswith("/"):
         raise not_found
-    decoded = unquote(raw_path, errors="strict")
-    twice = unquote(decoded, errors="strict")
+    try:
+        decoded = unquote(raw_path, errors="strict")
+        twice = unquote(decoded, errors="strict")
+    except UnicodeDecodeError:
+        raise not_found from None
     if "%" in decoded or "\\" in twice or "\x00" in twice:
         raise not_found
     if decoded == "/":

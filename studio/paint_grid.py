@@ -19,6 +19,7 @@ raises StudioError without running anything.
 
 from __future__ import annotations
 
+import json
 import re
 from dataclasses import dataclass
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from core.errors import DecollageError, StudioError
 from core.grid import EMPTY, LabeledGrid
-from core.recipe import NAME_PATTERN, Asset, RegionRule
+from core.recipe import NAME_PATTERN, SOURCE_FILE_FIELDS, Asset, RegionRule
 from core.recipe_loader import LoadedRecipe
 from geometry.voxelize import PartGrid, voxelize
 from pipeline.palette import palette_rgba
@@ -83,8 +84,26 @@ def script_of(asset: Asset) -> str | None:
     return getattr(asset.source, "script", None) if asset.source.kind == "cad" else None
 
 
-def load_asset_grid(loaded: LoadedRecipe, index: int, allow_scripts: bool) -> AssetGrid:
-    """Source, voxelize and apply the rules of expanded asset ``index``; errors name the recipe field."""
+def source_key(loaded: LoadedRecipe, asset: Asset) -> str:
+    """What an asset's source-part grid depends on: its source and grid settings, and its input files' stamps."""
+    stamps = []
+    for name in SOURCE_FILE_FIELDS[asset.source.kind]:
+        value = getattr(asset.source, name)
+        if value is not None:
+            path = loaded.resolve(value)
+            stat = path.stat() if path.exists() else None
+            stamps.append([str(path), stat and stat.st_mtime_ns, stat and stat.st_size])
+    return json.dumps([str(loaded.base_dir), asset.source.model_dump(mode="json"), asset.grid.model_dump(mode="json"),
+                       asset.fit.value, stamps])
+
+
+def load_asset_grid(loaded: LoadedRecipe, index: int, allow_scripts: bool,
+                    source_grids: dict[str, tuple[PartGrid, tuple[str, ...]]] | None = None) -> AssetGrid:
+    """Source, voxelize and apply the rules of expanded asset ``index``; errors name the recipe field.
+
+    ``source_grids`` (``source_key`` → source-part grid and its warnings) skips the
+    source and the voxelizer when nothing they read changed; it is filled here.
+    """
     asset = loaded.recipe.assets[index]
     field, _ = loaded.where(index)
     script = script_of(asset)
@@ -92,15 +111,21 @@ def load_asset_grid(loaded: LoadedRecipe, index: int, allow_scripts: bool) -> As
         raise StudioError(f"this asset runs the script {script!r}; the painter did not run it",
                           file=loaded.path, field=f"{field}.source.script",
                           hint="start the painter with --allow-scripts to run scripts the recipe names")
+    key = source_key(loaded, asset)
     try:
-        source = load_source(asset.source, loaded.base_dir)
-        part_grid = voxelize(source, asset.grid, asset.fit)
+        if source_grids is not None and key in source_grids:
+            part_grid, source_warnings = source_grids[key]
+        else:
+            source = load_source(asset.source, loaded.base_dir)
+            part_grid = voxelize(source, asset.grid, asset.fit)
+            source_warnings = (*source.warnings, *part_grid.warnings)
+            if source_grids is not None:
+                source_grids[key] = (part_grid, source_warnings)
         labeled, rule_warnings = apply_regions(part_grid, asset.regions, field=f"{field}.regions")
     except DecollageError as exc:
         raise exc.located(file=loaded.path, field=field) from None
     cells = np.argwhere(part_grid.part != EMPTY)
-    warnings = (*source.warnings, *part_grid.warnings, *rule_warnings)
-    return AssetGrid(index, field, asset, part_grid, labeled, cells, tuple(warnings))
+    return AssetGrid(index, field, asset, part_grid, labeled, cells, (*source_warnings, *rule_warnings))
 
 
 def relabel(grid: AssetGrid, rules: list[RegionRule]) -> LabeledGrid:

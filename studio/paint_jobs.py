@@ -131,18 +131,24 @@ class JobRunner:
                 self._waiting.state = JobState.SUPERSEDED
             self._waiting = job
             self._jobs[job.id] = job
-            self._lock.notify()
+            self._lock.notify_all()
             return job
 
-    def get(self, job_id: int) -> dict | None:
+    def get(self, job_id: int, unless: str | None = None, wait_s: float = 0.0) -> dict | None:
+        """The job's snapshot; with ``unless``, first wait up to ``wait_s`` while its state is still ``unless``."""
+        deadline = time.monotonic() + wait_s
         with self._lock:
             job = self._jobs.get(job_id)
+            while job is not None and job.state.value == unless and not self._stop:
+                left = deadline - time.monotonic()
+                if left <= 0 or not self._lock.wait(left):
+                    break
             return None if job is None else job.snapshot()
 
     def close(self) -> None:
         with self._lock:
             self._stop = True
-            self._lock.notify()
+            self._lock.notify_all()
         self._thread.join(timeout=2.0)
 
     def _newer_waiting(self) -> bool:
@@ -153,6 +159,7 @@ class JobRunner:
         with self._lock:
             job.state = state
             job.result.update(result)
+            self._lock.notify_all()
 
     def _loop(self) -> None:
         while True:

@@ -10,7 +10,8 @@ shown. Routes (``studio/http.py`` adds the safety rules):
 - ``GET /api/detailizer?name=D&asset=A``: what detailizer D accepts (styles, parts; null = any);
 - ``POST /api/palette``: ``{asset, target}`` (or ``{styles}``) → the colours the GLB will use;
 - ``POST /api/detailize``: ``{asset, detailizer, target}`` → a job (``studio/paint_jobs.py``);
-- ``GET /api/job?id=N``: the job's state, preview and exact GLB URLs, sha256, manifest entry;
+- ``GET /api/job?id=N[&unless=STATE]``: the job's state (waiting up to 5 s while it is STATE), preview
+  and exact GLB URLs, sha256, manifest entry;
 - ``POST /api/save``: ``{asset, detailizer, target, recipe_sha256}`` → the recipe file rewritten
   (``studio/recipe_edit.py``) when it did not change on disk meanwhile;
 - ``/results/<job>/<file>``: the jobs' GLBs and previews (a scratch folder removed on exit).
@@ -59,6 +60,7 @@ class PaintSession:
         self._lock = threading.Lock()
         self._grids: dict[tuple[str, str], AssetGrid] = {}
         self._recipe: tuple[LoadedRecipe, str] | None = None
+        self._source_grids: dict = {}  # paint_grid.source_key → (source-part grid, warnings); last 16 kept
 
     def close(self) -> None:
         """Stop the worker and remove the scratch folder."""
@@ -93,7 +95,9 @@ class PaintSession:
             grid = self._grids.get((name, sha))
         if grid is None:
             with PIPELINE_LOCK:  # sources and detailizers share one lock: the CAD kernel is not thread-safe
-                grid = load_asset_grid(loaded, index, self.allow_scripts)
+                grid = load_asset_grid(loaded, index, self.allow_scripts, self._source_grids)
+                while len(self._source_grids) > 16:
+                    self._source_grids.pop(next(iter(self._source_grids)))
             with self._lock:
                 self._grids = {k: v for k, v in self._grids.items() if k[1] == sha}
                 self._grids[(name, sha)] = grid
@@ -210,9 +214,11 @@ def painter_app(session: PaintSession) -> App:
 
     def job(request: Request) -> Response:
         try:
-            snapshot = session.runner.get(int(request.arg("id", "")))
+            job_id = int(request.arg("id", ""))
         except ValueError:
             raise HttpError(HTTPStatus.BAD_REQUEST, "id: expected a job number") from None
+        # ?unless=STATE waits (up to 5 s) for the job to leave that state: the page long-polls.
+        snapshot = session.runner.get(job_id, request.arg("unless"), 5.0)
         if snapshot is None:
             raise HttpError(HTTPStatus.NOT_FOUND, "no such job (finished jobs are kept for a while only)")
         return Response.json(snapshot)

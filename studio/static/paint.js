@@ -13,7 +13,7 @@ const S = {
   session: null, asset: null, count: 0,
   part: null, style: null, partNames: [], styleNames: [], palette: {},
   vocab: { styles: null, parts: null, learned: false }, extraStyles: [], extraParts: [],
-  history: [], tool: 'orbit', seq: 0, dirty: false, lastEditAt: null, liveTimer: null, shownAsset: null,
+  history: [], tool: 'orbit', seq: 0, dirty: false, lastEditAt: null, shownAsset: null,
 };
 const studio = (window.studio = { ready: false, state: S, result: null, timings: [], saved: null, error: null });
 
@@ -148,10 +148,7 @@ async function edit(change, { record = true } = {}) {
   change();
   S.dirty = true;
   S.lastEditAt = performance.now();
-  if ($('live').checked) {
-    clearTimeout(S.liveTimer);
-    S.liveTimer = setTimeout(() => detailize('edit'), 0);  // one request for a burst of edits
-  }
+  if ($('live').checked) detailize('edit');  // its request leaves first; a newer one supersedes it
   refreshAll();
   await refreshPalette().catch(fail);
   refreshAll();
@@ -276,9 +273,11 @@ async function detailize(trigger = 'button') {
   const timing = { trigger, detailizer: $('detailizer').value, asset: name,
     posted_ms: Math.round(performance.now() - t0) };
   let previewShown = false;
+  let state = 'queued';
   for (;;) {
     let j;
-    try { j = await getJSON(`/api/job?id=${job.job}`); } catch (err) { if (seq === S.seq) fail(err); return; }
+    try { j = await getJSON(`/api/job?id=${job.job}&unless=${state}`); } catch (err) { if (seq === S.seq) fail(err); return; }
+    state = j.state;
     if (seq !== S.seq) return;  // a newer request took over
     if (j.preview_url && !previewShown && (j.state === 'preview' || j.state === 'done')) {
       timing.seen_ms = Math.round(performance.now() - t0);
@@ -316,7 +315,6 @@ async function detailize(trigger = 'button') {
     }
     if (j.state === 'failed') { fail(new Error(j.error)); $('result-state').textContent = 'failed'; return; }
     if (j.state === 'superseded') return;
-    await new Promise((resolve) => setTimeout(resolve, 100));
   }
 }
 

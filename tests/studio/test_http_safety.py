@@ -41,6 +41,8 @@ TRAVERSALS = [
     "/files/outside_link.txt",
     "/etc/passwd",
     "/api/../files/manifest.json",
+    "/files/%ff%fe",
+    "/files/%c0%ae%c0%ae/%c0%ae%c0%ae/etc/passwd",
 ]
 
 
