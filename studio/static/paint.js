@@ -290,7 +290,7 @@ async function detailize(trigger = 'button') {
       await new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve)));
       timing.preview_ms = Math.round(performance.now() - t0);
       timing.server_preview_s = j.preview_timings_s;
-      $('result-state').textContent = `preview (½ resolution, ${j.preview_triangles.toLocaleString('en')} triangles); building the exact GLB…`;
+      $('result-state').textContent = `preview (1/${j.preview_factor} resolution, ${j.preview_triangles.toLocaleString('en')} triangles); building the exact GLB…`;
       status(`preview in ${(timing.preview_ms / 1000).toFixed(2)} s`, 'good');
     }
     if (j.state === 'done') {
