@@ -3,7 +3,9 @@
 Role: the gallery's routes. The page (``studio/static/view.html``, ``view.js``)
 reads the build's ``manifest.json`` (``pipeline/manifest.py``) through
 ``/api/manifest`` and the files it lists through ``/files/<path>``; it renders
-the selected asset's GLB with three.js. Nothing is built or run: the gallery
+the selected asset's GLB with three.js. It polls ``/api/build`` (the build
+signal ``build.json``, whose counter goes up after every build, ``decollage
+build --watch`` included) and reloads what was rebuilt. Nothing is built or run: the gallery
 only reads the build folder, and only its regular, non-hidden files (so not the
 cache records in ``.decollage/``).
 """
@@ -15,7 +17,7 @@ from http import HTTPStatus
 from pathlib import Path
 
 from core.errors import StudioError
-from pipeline.manifest import MANIFEST_NAME
+from pipeline.manifest import BUILD_SIGNAL, MANIFEST_NAME
 from studio.http import App, HttpError, Request, Response
 from studio.pages import base_app
 
@@ -51,6 +53,17 @@ def gallery_app(out_dir: Path) -> App:
         data["studio"] = {"folder": out_dir.resolve().name, "path": str(out_dir.resolve())}
         return Response.json(data)
 
+    def build_signal(_: Request) -> Response:
+        try:
+            data = json.loads((out_dir / BUILD_SIGNAL).read_text(encoding="utf-8"))
+        except (OSError, ValueError, UnicodeDecodeError):
+            data = {}
+        if not isinstance(data, dict):
+            data = {}
+        return Response.json({"counter": data.get("counter", 0), "rebuilt": data.get("rebuilt", []),
+                              "failed": data.get("failed", [])})
+
     app.routes[("GET", "/api/manifest")] = manifest
+    app.routes[("GET", "/api/build")] = build_signal
     app.trees["/files/"] = out_dir
     return app

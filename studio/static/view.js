@@ -108,7 +108,7 @@ function fillLods(scene) {
   $('lod').replaceChildren(...[...levels].sort((x, y) => x - y).map((l) => el('option', { value: l, text: l })));
 }
 
-async function select(a) {
+async function select(a, { version = '' } = {}) {
   selected = a;
   for (const c of document.querySelectorAll('.card.selected')) c.classList.remove('selected');
   a._card.classList.add('selected');
@@ -122,13 +122,13 @@ async function select(a) {
     return;
   }
   try {
-    const scene = await viewer.loadGLB(fileUrl(glb.path));
+    const scene = await viewer.loadGLB(fileUrl(glb.path) + (version ? `?v=${version}` : ''));
     if (selected !== a) return;  // another card was chosen meanwhile
     shownScene = scene;
     fillLods(scene);
-    viewer.show(scene);
+    viewer.show(scene, { keepView: !!version });
     applyVisibility();
-    viewer.frame();
+    if (!version) viewer.frame();
     studio.shown = a.name;
   } catch (err) {
     showError(`cannot load ${glb.path}: ${err.message}`);
@@ -157,24 +157,55 @@ function showError(message) {
   $('error').textContent = message;
 }
 
-async function main() {
-  manifest = await getJSON('/api/manifest');
+function showManifest() {
   const s = manifest.summary || {};
   $('folder').textContent = manifest.studio.folder;
   document.title = `decollage view: ${manifest.studio.folder}`;
   $('summary').textContent = `${manifest.assets.length} assets · ${s.built ?? '?'} built · ${s.failed ?? '?'} failed`
-    + (manifest.recipe ? ` · recipe ${manifest.recipe.path}` : '') + (manifest.tool ? ` · decollage ${manifest.tool.version}` : '');
+    + (manifest.recipe ? ` · recipe ${manifest.recipe.path}` : '') + (manifest.tool ? ` · decollage ${manifest.tool.version}` : '')
+    + (studio.buildCounter ? ` · build #${studio.buildCounter}` : '');
   const styles = [...new Set(manifest.assets.flatMap(stylesOf))].sort();
-  $('style-filter').append(...styles.map((st) => el('option', { value: st, text: st })));
+  const chosen = $('style-filter').value;
+  $('style-filter').replaceChildren(el('option', { value: '', text: 'all styles' }),
+    ...styles.map((st) => el('option', { value: st, text: st })));
+  $('style-filter').value = styles.includes(chosen) ? chosen : '';
   $('cards').replaceChildren(...manifest.assets.map(card));
   studio.cards = manifest.assets.length;
+  applyFilter();
+}
+
+// A build into the folder (decollage build, or --watch) bumps build.json's counter: reload what changed.
+let following = false;
+async function followBuilds() {
+  if (following || document.visibilityState !== 'visible') return;
+  following = true;
+  try { await refreshIfRebuilt(); } finally { following = false; }
+}
+
+async function refreshIfRebuilt() {
+  let signal;
+  try { signal = await getJSON('/api/build'); } catch { return; }
+  if (signal.counter === studio.buildCounter) return;
+  studio.buildCounter = signal.counter;
+  manifest = await getJSON('/api/manifest');
+  const name = selected && selected.name;
+  showManifest();
+  const again = manifest.assets.find((a) => a.name === name);
+  if (again) await select(again, { version: signal.rebuilt.includes(name) ? String(signal.counter) : '' });
+  studio.refreshes = (studio.refreshes || 0) + 1;
+}
+
+async function main() {
+  studio.buildCounter = (await getJSON('/api/build')).counter;
+  manifest = await getJSON('/api/manifest');
+  showManifest();
   for (const id of ['filter', 'style-filter', 'status-filter']) $(id).addEventListener('input', applyFilter);
   $('lod').addEventListener('change', applyVisibility);
   $('collision').addEventListener('change', applyVisibility);
-  applyFilter();
   studio.ready = true;
   const first = manifest.assets.find((a) => a.status === 'built') || manifest.assets[0];
   if (first) await select(first);
+  setInterval(() => followBuilds().catch((err) => showError(err.message)), 1500);
 }
 
 main().catch((err) => showError(err.message));

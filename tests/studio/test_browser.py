@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,7 +28,8 @@ def _page_errors(page) -> list[str]:
     return [e for e in page.errors if "favicon" not in e]
 
 
-def test_gallery_lists_every_asset_draws_it_and_filters(page, small_build):
+def test_gallery_lists_every_asset_draws_it_and_filters(page, small_build, tmp_path):
+    small_build = Path(shutil.copytree(small_build, tmp_path / "build"))  # this test rewrites its manifest
     manifest = json.loads((small_build / "manifest.json").read_text())
     with serving(gallery_app(small_build)) as url:
         page.goto(url)
@@ -51,6 +54,15 @@ def test_gallery_lists_every_asset_draws_it_and_filters(page, small_build):
         page.locator(".card[data-name=word]").click()
         wait_js(page, "window.studio.shown === 'word'")
         assert drawn_fraction(page, "#viewer") > 0.01
+
+        # A new build into the folder (build.json's counter goes up): the page reloads the manifest.
+        signal = small_build / "build.json"
+        counter = json.loads(signal.read_text())["counter"]
+        manifest["assets"] = [a for a in manifest["assets"] if a["name"] != "broken"]
+        (small_build / "manifest.json").write_text(json.dumps(manifest))
+        signal.write_text(json.dumps({"counter": counter + 1, "rebuilt": ["word"], "failed": []}))
+        wait_js(page, "window.studio.refreshes >= 1 && window.studio.cards === 2", 30)
+        wait_js(page, "window.studio.shown === 'word'")
     assert _page_errors(page) == []
 
 
