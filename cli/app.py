@@ -17,10 +17,12 @@ from cli.bench import bench_command
 from cli.build import build_command
 from cli.console import ExitCode, stderr
 from cli.eval import eval_command
+from cli.paint import paint_command
 from cli.schema import schema_command, version_command
 from cli.styles import styles_app
 from cli.train import train_command
 from cli.validate import validate_command
+from cli.view import view_command
 
 app = typer.Typer(
     add_completion=False,
@@ -35,6 +37,8 @@ app.command("version")(version_command)
 app.command("train")(train_command)
 app.command("eval")(eval_command)
 app.command("bench")(bench_command)
+app.command("view")(view_command)
+app.command("paint")(paint_command)
 app.add_typer(styles_app, name="styles")
 
 

@@ -1,4 +1,5 @@
-"""What every sub-command shares: exit codes, the stderr console, and the one way an error ends a command.
+"""What every sub-command shares: exit codes, the stderr console, the one way an error ends a command, and
+the one way a page server (``view``, ``paint``) runs until Ctrl-C.
 
 Library code raises ``DecollageError`` subclasses (``core/errors.py``); a
 sub-command catches them and calls ``fail``, which prints the one-line
@@ -7,12 +8,15 @@ message and exits with the code for invalid input.
 
 from __future__ import annotations
 
+import sys
+import webbrowser
 from enum import IntEnum
 
 import typer
 from rich.console import Console
 
 from core.errors import DecollageError
+from studio.http import serve
 
 
 class ExitCode(IntEnum):
@@ -34,3 +38,27 @@ def fail(exc: DecollageError, code: ExitCode = ExitCode.INVALID) -> None:
     """Print ``error: <file>: <field>: <message> (<hint>)`` and exit with ``code``."""
     stderr().print(f"[bold red]error:[/] {exc.one_line()}", markup=True)
     raise typer.Exit(int(code))
+
+
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+def serve_page(server, title: str, open_browser: bool = False) -> None:
+    """Print the page's URL (stdout) and how to stop (stderr), serve until Ctrl-C, say it stopped.
+
+    ``server`` comes from ``studio.http.make_server``.
+    """
+    host = server.server_address[0]
+    if host not in LOOPBACK:
+        stderr().print(f"[yellow]warning:[/] listening on {host}: the studio has no login; anyone who can reach "
+                       "this address can use it (default: --host 127.0.0.1)")
+
+    def ready(url: str) -> None:
+        sys.stdout.write(url + "\n")
+        sys.stdout.flush()
+        stderr().print(f"{title} at {url} (Ctrl-C stops)", markup=False)
+        if open_browser:
+            webbrowser.open(url)
+
+    serve(server, ready)
+    stderr().print("stopped")

@@ -80,3 +80,7 @@ class ExportError(DecollageError):
 
 class UsageError(DecollageError):
     """The command line itself is wrong (bad option combination, missing file)."""
+
+
+class StudioError(DecollageError):
+    """The studio (``decollage view`` / ``paint``) refuses a request or cannot do it (bad path, save refused)."""

@@ -409,15 +409,25 @@ class Band(_Strict):
 BAND_SHORTCUTS = {"top": Band(**{"from": 0.5, "to": 1.0}), "bottom": Band(**{"from": 0.0, "to": 0.5})}
 
 
+#: Largest index a ``cells`` entry may hold: the coarse grid is at most ``max_cells`` (≤ 1024) cells a side.
+MAX_CELL_INDEX = 1023
+CellIndex = Annotated[int, Field(ge=0, le=MAX_CELL_INDEX)]
+
+
 class RegionRule(_Strict):
     """Give matching voxels a part label and a style. Later rules override earlier ones.
 
     A voxel matches when its source part matches one of ``parts`` (shell-style
-    globs over source part names) and, if ``band`` is given, it lies in the band.
+    globs over source part names), if ``band`` is given it lies in the band, and
+    if ``cells`` is given it is one of those coarse cells.
     """
 
     parts: list[str] = Field(["*"], min_length=1)
     band: Optional[Union[Literal["top", "bottom"], Band]] = None
+    cells: Optional[list[tuple[CellIndex, CellIndex, CellIndex]]] = Field(
+        None, min_length=1, max_length=1 << 18,
+        description="Coarse grid cells [x, y, z] (0-based indices of the asset's labeled grid, +Y up) the rule "
+                    "is limited to; 'decollage paint' writes them for voxels painted with its brush.")
     part: str = Field(pattern=LABEL_PATTERN, description="Semantic part label, e.g. body, roof; "
                       "'@source' keeps the source's own part name.")
     style: str = Field(pattern=LABEL_PATTERN, description="Style name (an exemplar of the detailizer); "

@@ -3,9 +3,10 @@
 Rules apply in recipe order; a later matching rule overrides an earlier one, so
 a catch-all ``parts: ["*"]`` rule usually comes first and specific ones follow.
 A voxel matches a rule when its source part name matches one of the rule's
-shell-style globs and, if the rule has a band, its centre lies in the band
+shell-style globs, if the rule has a band, its centre lies in the band
 (fractions of the occupied bounding box along the band's axis; ``to = 1`` is
-inclusive). ``@source`` keeps the source's own part name or style.
+inclusive), and if the rule lists cells, it is one of them ([x, y, z] indices
+of the coarse grid). ``@source`` keeps the source's own part name or style.
 """
 
 from __future__ import annotations
@@ -34,6 +35,22 @@ def _band_mask(occupied: np.ndarray, axis: str, lo_frac: float, hi_frac: float) 
     shape = [1, 1, 1]
     shape[ax] = -1
     return np.broadcast_to(inside.reshape(shape), occupied.shape)
+
+
+def _cells_mask(shape: tuple[int, int, int], cells: Sequence[tuple[int, int, int]], field: str) -> np.ndarray:
+    """(X, Y, Z) bool: True at the listed [x, y, z] cells. Raises RecipeError for a cell outside the grid."""
+    idx = np.asarray(cells, dtype=np.int64).reshape(-1, 3)
+    outside = np.flatnonzero((idx >= np.asarray(shape)).any(axis=1))
+    if outside.size:
+        first = int(outside[0])
+        raise RecipeError(
+            f"cell {idx[first].tolist()} is outside the {'×'.join(map(str, shape))} coarse grid",
+            field=f"{field}[{first}]",
+            hint="the source or grid settings changed since the cells were painted; paint them again",
+        )
+    mask = np.zeros(shape, dtype=bool)
+    mask[idx[:, 0], idx[:, 1], idx[:, 2]] = True
+    return mask
 
 
 def _intern(names: list[str], name: str) -> int:
@@ -79,6 +96,8 @@ def apply_regions(
         band = rule.band_range()
         if band is not None:
             mask &= _band_mask(occupied, band.axis, band.from_, band.to)
+        if rule.cells is not None:
+            mask &= _cells_mask(grid.part.shape, rule.cells, f"{field}[{r}].cells")
         if not mask.any():
             warnings.append(f"{field}[{r}] matches no voxel")
             continue

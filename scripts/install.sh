@@ -3,6 +3,7 @@
 #   bash scripts/install.sh            runtime only
 #   bash scripts/install.sh test       runtime + test tools + the cadquery runtime (so the
 #                                      tests also prove that the optional cadquery install works)
+#                                      + Debian's chromium for the studio's browser tests (apt-get, as root)
 #   bash scripts/install.sh cadquery   the optional cadquery runtime in .venv-cadquery
 #   bash scripts/install.sh exemplars  runtime + pybullet (103 MB wheel): its pybullet_data holds the
 #                                      model the 'monastery' style set is read from; and the Debian
@@ -41,11 +42,28 @@ if [ "${1:-}" = "exemplars" ] && [ ! -d /usr/share/sweethome3d/furniture ]; then
              "run: sudo apt-get install -y sweethome3d-furniture" >&2
     fi
 fi
+# The studio's WebGL library (three.js, pinned by studio/web/package-lock.json), served by 'decollage view' and
+# 'decollage paint' from this checkout: the pages never load anything from a CDN.
+if command -v npm >/dev/null; then
+    npm ci --silent --no-audit --no-fund --prefix studio/web
+else
+    echo "npm not found: 'decollage view' and 'paint' need three.js: install Node.js and npm, then run" \
+         "npm ci --prefix studio/web" >&2
+fi
 # pip's resolver cannot see every conflict (ecosystem.md §1.1): prove the stack imports.
 quiet .venv/bin/python -c "import build123d, trimesh, torch, skimage, fast_simplification, fontTools, shapely, cli.app; print('decollage environment ready: torch', torch.__version__, '| build123d', build123d.__version__)"
 if [ "${1:-}" = "test" ]; then
     if [ ! -x .venv-cadquery/bin/python ]; then
         bash scripts/install_cadquery.sh
+    fi
+    # The studio's browser tests drive the distribution's Chromium with playwright (never a downloaded browser).
+    if [ ! -x /usr/bin/chromium ]; then
+        if command -v apt-get >/dev/null && [ "$(id -u)" = "0" ]; then
+            apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null
+        else
+            echo "the studio's browser tests need Debian's Chromium: run: sudo apt-get install -y chromium" \
+                 "chromium-driver (without it they are skipped, and fail under CI=true)" >&2
+        fi
     fi
     # The Khronos glTF validator checks every GLB the tests write (npm, pinned in tools/gltf).
     if command -v npm >/dev/null; then

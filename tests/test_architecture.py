@@ -9,7 +9,7 @@ from pathlib import Path
 import grimp
 
 REPO = Path(__file__).resolve().parents[1]
-ROOMS = ("cli", "evaluation", "pipeline", "model", "stylesets", "geometry", "sources", "core")
+ROOMS = ("cli", "studio", "evaluation", "pipeline", "model", "stylesets", "geometry", "sources", "core")
 #: "Modules stay small enough to read in one sitting: a few hundred lines, never over about 600."
 MAX_MODULE_LINES = 650
 

@@ -72,6 +72,31 @@ def test_from_source_keeps_names_and_styles():
         apply_regions(_tower(), [_rule(part="a", style="@source")])
 
 
+def test_cells_limit_a_rule_to_listed_coarse_cells():
+    grid, warnings = apply_regions(_tower(), [
+        _rule(part="body", style="a"),
+        _rule(cells=[[0, 7, 0], [1, 7, 2], [3, 0, 0]], part="body", style="b"),  # [3, 0, 0] is empty: ignored
+    ])
+    b = grid.style_names.index("b")
+    assert sorted(map(tuple, np.argwhere(grid.style == b).tolist())) == [(0, 7, 0), (1, 7, 2)]
+    assert warnings == []
+    with pytest.raises(RecipeError, match=r"cell \[0, 8, 0\] is outside the 4×8×4 coarse grid") as info:
+        apply_regions(_tower(), [_rule(part="a", style="a"), _rule(cells=[[0, 1, 0], [0, 8, 0]], part="a", style="b")],
+                      field="assets[0].regions")
+    assert info.value.field == "assets[0].regions[1].cells[1]"
+
+
+def test_cells_are_validated_by_the_schema():
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError):
+        _rule(cells=[[0, -1, 0]], part="a", style="b")
+    with pytest.raises(ValidationError):
+        _rule(cells=[], part="a", style="b")
+    with pytest.raises(ValidationError):
+        _rule(cells=[[0, 1]], part="a", style="b")
+
+
 def _labeled(occ: np.ndarray) -> LabeledGrid:
     idx = np.where(occ, 0, EMPTY).astype(np.int16)
     return LabeledGrid(occ, idx, idx.copy(), ("body",), ("stone",), voxel_size_m=0.16, origin_m=(1.0, 2.0, 3.0))
