@@ -19,10 +19,10 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from cli.console import fail, stderr
 from core.errors import DecollageError
 from core.files import ensure_writable_dir
+from core.recipe import Device
 from model.ablations import ABLATIONS, ablation_configs
 from model.config import ModelConfig
 from model.data import exemplars_from_set
-from model.train import TrainConfig, train
 from stylesets.provenance import record_of_set
 from stylesets.registry import resolve_style_set
 
@@ -49,7 +49,7 @@ def train_command(
                                            "model (model.ablations; e.g. no_pyramid, decor_gan); recorded in "
                                            "the checkpoint."),
     seed: int = typer.Option(0, "--seed"),
-    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda or cuda:N."),
+    device: str = typer.Option(Device.AUTO.value, "--device", help="auto, cpu, cuda or cuda:N."),
     checkpoint_every: int = typer.Option(100, "--checkpoint-every", help="Iterations between last.pt saves."),
     preview_every: int = typer.Option(100, "--preview-every", help="Iterations between preview PNGs (0: none)."),
     recon_early_iters: int = typer.Option(5000, "--recon-early-iters",
@@ -71,6 +71,8 @@ def train_command(
 
 def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_every, preview_every,
            recon_early_iters, resume, quiet, ablation="full") -> None:
+    from model.train import TrainConfig, train  # torch: imported when training, not at every CLI start
+
     console = stderr()
     ensure_writable_dir(out)
     sset = resolve_style_set(style_set, progress=None if quiet else lambda n: console.print(f"  voxelized {n}"))

@@ -6,9 +6,9 @@ one doubling level per entry of ``levels``), one discriminator per supervised le
 
 - ``ModelConfig.lean(P, N)``: the CPU default (about 1.1 M generator parameters;
   no 3×3×3 convolution at the finest resolution, sub-pixel "voxel shuffle" for the
-  last level), sized from ``reference/perf-envelope.md``'s measurements;
+  last level), sized from CPU measurements (time and memory in ``lean``'s docstring);
 - ``ModelConfig.paper(P, N)``: the layout of the published code
-  (``reference/method.md`` §1.1/§1.2): 18.8 M generator parameters for P=5, N=32.
+  (the published DECOLLAGE code's networks): 18.8 M generator parameters for P=5, N=32.
 
 ``to_dict``/``from_dict`` round-trip through plain JSON types for checkpoints;
 ``from_dict`` refuses unknown or missing keys and invalid values with a
@@ -41,7 +41,7 @@ class DownLoss(str, Enum):
 
     #: ‖maxpool₂(level j+1) − level j‖², the paper's Eq. (down).
     PAPER_MSE = "paper_mse"
-    #: The published code's hinge on avg/max-pooled cells (method.md §3).
+    #: The published code's hinge on avg/max-pooled cells (``model/losses.py``'s ``down_loss``).
     CODE_HINGE = "code_hinge"
 
 
@@ -130,14 +130,14 @@ class DiscriminatorSpec:
 
 @dataclass(frozen=True)
 class LossConfig:
-    """Loss weights and variants (method.md §3; paper Eq. 1–6).
+    """Loss weights and variants (the DECOLLAGE paper's Eq. 1–6 and its published code).
 
     Attributes:
         beta_recon: weight of the per-level reconstruction MSE (the code's β=10; the paper has 1).
         gamma_down, gamma_up: weights of the structure-preserving losses (γ1 = γ2 = 10).
         alpha_joint, alpha_other: style-head weight in joint cells / elsewhere (α1, α2).
         joint_radius: joints are voxels within this many *fine* voxels of two parts.
-        down_loss: paper MSE or the code's hinge (default: code, per method.md's advice).
+        down_loss: paper MSE or the code's hinge (default: the code's, whose numbers the paper reports).
         stop_gradient: detach the coarser level in L_down / L_up (paper: yes; code: no).
         down_hinge_high: the hinge's "already occupied" max-pool level (code: 0.6; the
             other thresholds are the project's iso level 0.4).
@@ -256,7 +256,7 @@ class ModelConfig:
 
     @classmethod
     def paper(cls, n_parts: int, n_styles: int, **overrides: Any) -> "ModelConfig":
-        """The published layout (method.md §1.1/§1.2): g_dim 32, 18.8 M + 10.9 M parameters for P=5, N=32."""
+        """The published code's layout: g_dim 32, 18.8 M + 10.9 M parameters for P=5, N=32."""
         base = cls(
             n_parts=n_parts,
             n_styles=n_styles,

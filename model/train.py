@@ -1,4 +1,4 @@
-"""DECOLLAGE training: one readable loop (method.md §3), resumable, seeded, CPU- or CUDA-feasible.
+"""DECOLLAGE training: one readable loop (the published code's iteration), resumable, seeded, CPU- or CUDA-feasible.
 
 One iteration (``Trainer.iteration``):
 
@@ -13,6 +13,10 @@ One iteration (``Trainer.iteration``):
 3. **D step** — per level, masked LSGAN on the real style shape's smoothed targets
    and the detached generated levels, with the fake masks built from the true
    per-part assignment at every level (the reference's bug fixed in ``losses``).
+
+Every loss comes from ``model/losses.py``'s assembly (``reconstruction_loss``,
+``generator_adversarial_loss``, ``discriminator_loss_levels``), given the per-level
+masks, α maps and previous grids that ``SampleView`` cuts to each level's cells.
 
 Adam (lr 1e-4, betas 0.9/0.999) for G and one for all Ds; batch 1; variable,
 non-cubic crops (bounding box + one empty coarse cell, ``model.data``).
@@ -51,7 +55,7 @@ Resuming (``resume=True`` and ``last.pt`` present) restores the step, all weight
 both optimizers and the torch RNG; the data of iteration ``i`` is a pure function
 of (seed, i), so a resumed run draws exactly the samples an unbroken run would.
 
-Intended CLI (``cli/app.py`` will map it onto ``train``)::
+The CLI (``cli/train.py``)::
 
     decollage train --set things --out runs/things --steps 3000 [--resolution 128]
                     [--seed 0] [--device auto|cpu|cuda] [--layout lean|paper]
@@ -72,13 +76,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
+from scipy.ndimage import binary_erosion
 
+from model.ablations import ABLATIONS
 from model.checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from model.config import ModelConfig
 from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, rng_for, style_sample
-from model.masks import DOutputMasks, StyledCoarse
+from model.infer import cpu_threads, resolve_device
+from model.losses import discriminator_loss_levels, generator_adversarial_loss, reconstruction_loss
+from model.masks import DOutputMasks, StyledCoarse, align_to_d_output, alpha_map, joint_mask
+from model.networks import Generator, build_discriminators
+from model.previews import preview_samples, write_preview
 from model.windows import Window, halo_cells, window_forward  # noqa: F401 - part of this module's API
 from core.errors import DetailizeError
+from core.recipe import Device
 
 
 @dataclass(frozen=True)
@@ -100,7 +112,7 @@ class TrainConfig:
             finer ones on a random window of ``window_cells``³ coarse cells around the
             surface (``window_cells = 0``: every level on the whole shape).
         adaptive_alpha: α1 in part-joint cells (else α2 everywhere).
-        device: ``auto``, ``cpu``, ``cuda``.
+        device: a ``Device`` (its value, or ``"cuda:N"``, is accepted: ``infer.resolve_device``).
         command: the command line that started the run (recorded in checkpoints).
         ablation: name of the ``model.ablations`` row this run trains (``full`` = the model),
             recorded in the checkpoints' training meta; a resume must name the same one.
@@ -120,11 +132,13 @@ class TrainConfig:
     whole_levels: int = 2
     window_cells: int = 4
     adaptive_alpha: bool = True
-    device: str = "auto"
+    device: Device | str = Device.AUTO
     command: str = ""
     ablation: str = "full"
 
     def __post_init__(self) -> None:
+        if isinstance(self.device, str) and not isinstance(self.device, Device) and self.device in set(Device):
+            object.__setattr__(self, "device", Device(self.device))
         checks = (
             (self.steps >= 0, "steps", "use 0 or more iterations"),
             # style-sample draws are indexed it·8 + r, so at most 8 reconstruction steps
@@ -139,8 +153,6 @@ class TrainConfig:
         for ok, name, hint in checks:
             if not ok:
                 raise DetailizeError(f"bad training setting {name} = {getattr(self, name)!r}", field=name, hint=hint)
-        from model.ablations import ABLATIONS
-
         if self.ablation not in ABLATIONS:
             raise DetailizeError(f"unknown ablation {self.ablation!r}", field="ablation",
                                  hint="use one of: " + ", ".join(ABLATIONS))
@@ -169,8 +181,6 @@ def surface_window(coarse_occ: np.ndarray, cells: int, rng: np.random.Generator)
 
     Surface cells are occupied cells with an empty 6-neighbour (all occupied cells if none).
     """
-    from scipy.ndimage import binary_erosion
-
     surface = coarse_occ & ~binary_erosion(coarse_occ, border_value=0)
     cand = np.argwhere(surface if surface.any() else coarse_occ)
     centre = cand[int(rng.integers(len(cand)))]
@@ -210,8 +220,6 @@ class SampleView:
         return arr if w is None else arr[tuple(slice(s.start * factor, s.stop * factor) for s in w)]
 
     def target(self, j: int):
-        import torch
-
         t = self.sample.target(j, self._cells(j))
         return torch.from_numpy(np.ascontiguousarray(t))[None, None].to(self.device)
 
@@ -225,8 +233,6 @@ class SampleView:
         return DOutputMasks(m.style[None], m.global_[None])
 
     def alpha(self, j: int, d_shape: tuple[int, ...], cfg: ModelConfig):
-        from model.masks import align_to_d_output, alpha_map, joint_mask
-
         lc = cfg.losses
         if self._joints is None:
             self._joints = joint_mask(self.sample.fine_labels, cfg.factor, lc.joint_radius)
@@ -247,11 +253,6 @@ class Trainer:
 
     def __init__(self, exemplars: Sequence[Exemplar], cfg: ModelConfig, tcfg: TrainConfig,
                  part_aliases: dict[str, str] | None = None) -> None:
-        import torch
-
-        from model.infer import cpu_threads, resolve_device
-        from model.networks import Generator, build_discriminators
-
         self.exemplars, self.cfg, self.tcfg, self.aug = list(exemplars), cfg, tcfg, tcfg.augment()
         self.part_aliases = dict(part_aliases or {})
         self.style_set: dict | None = None  # the set's provenance record, stored in checkpoints
@@ -274,8 +275,6 @@ class Trainer:
     # ------------------------------------------------------------------ tensors
 
     def _inputs(self, s: Sample):
-        import torch
-
         occ = torch.from_numpy(s.coarse_occupancy)[None]
         parts = torch.from_numpy(s.coarse_labels.astype(np.int64))[None]
         styles = torch.from_numpy(s.style_index())[None]
@@ -294,14 +293,12 @@ class Trainer:
 
     def reconstruction_step(self, it: int, r: int) -> tuple[dict[str, float], "SampleView"]:
         """One G step reproducing a style shape in its own style; returns losses and the sample's view."""
-        from torch.nn import functional as F
-
         style = int(rng_for(self.tcfg.seed, it, 100 + r).integers(self.cfg.n_styles))
         s = style_sample(self.exemplars, style, self.cfg, self.aug, self.tcfg.seed, it * 8 + r)
         v = self._view(s, it, 200 + r)
         outs = self._forward(v)
-        levels = self.cfg.supervised_levels
-        loss = self.cfg.losses.beta_recon * sum(F.mse_loss(o, v.target(j)) for j, o in zip(levels, outs))
+        targets = [v.target(j) for j in self.cfg.supervised_levels]
+        loss = reconstruction_loss(outs, targets, self.cfg.losses.beta_recon)["total"]
         self.opt_g.zero_grad(set_to_none=True)
         loss.backward()
         self.opt_g.step()
@@ -318,9 +315,7 @@ class Trainer:
         input for the first, pooled by the resolution ratio: 2, or 16 without the
         pyramid), cropped to the window where level j is windowed.
         """
-        from model.losses import discriminator_loss, generator_gan_loss, structure_pair
-
-        lc, cfg = self.cfg.losses, self.cfg
+        cfg = self.cfg
         content = augmented_sample(self.exemplars, cfg, self.aug, self.tcfg.seed, it)
         v = self._view(content, it, 300)
         occ = self._inputs(content)[0]
@@ -329,39 +324,28 @@ class Trainer:
         self.discs.requires_grad_(False)
         outs = self._forward(v)
         levels = cfg.supervised_levels
-        gan, down, up = [], [], []
-        for k, (j, d, o) in enumerate(zip(levels, self.discs, outs)):
-            df = d(o)
-            m = v.masks(j, tuple(df.shape[2:]), cfg)
-            alpha = v.alpha(j, tuple(df.shape[2:]), cfg) if self.tcfg.adaptive_alpha else lc.alpha_other
-            gan.append(generator_gan_loss(df, m.style, m.global_, alpha)["total"])
-            j_prev = levels[k - 1] if k else -1
-            prev = v.crop_prev(outs[k - 1] if k else occ, j, j_prev)
-            d_j, u_j = structure_pair(o, prev, lc, factor=2 ** (j - j_prev))
-            down.append(d_j)
-            up.append(u_j)
-        g_gan, g_down, g_up = sum(gan), sum(down), sum(up)
-        g_total = g_gan + lc.gamma_down * g_down + lc.gamma_up * g_up
+        d_fake = [d(o) for d, o in zip(self.discs, outs)]
+        fake_masks = [v.masks(j, tuple(df.shape[2:]), cfg) for j, df in zip(levels, d_fake)]
+        alphas = ([v.alpha(j, tuple(df.shape[2:]), cfg) for j, df in zip(levels, d_fake)]
+                  if self.tcfg.adaptive_alpha else None)
+        prevs = [v.crop_prev(outs[k - 1] if k else occ, j, levels[k - 1] if k else -1) for k, j in enumerate(levels)]
+        g = generator_adversarial_loss(d_fake, outs, prevs, fake_masks, alphas, cfg)
         self.opt_g.zero_grad(set_to_none=True)
-        g_total.backward()
+        g["total"].backward()
         self.opt_g.step()
         self.discs.requires_grad_(True)
 
         # D: real = the smoothed style shape of the last reconstruction step; fake = detached outputs.
-        d_real_sum = d_fake_sum = 0.0
-        for j, d, o in zip(levels, self.discs, outs):
-            dr, df = d(real.target(j)), d(o.detach())
-            terms = discriminator_loss(dr, df, real.masks(j, tuple(dr.shape[2:]), cfg),
-                                       v.masks(j, tuple(df.shape[2:]), cfg))
-            d_real_sum = d_real_sum + terms["real"]
-            d_fake_sum = d_fake_sum + terms["fake"]
-        d_total = d_real_sum + d_fake_sum
+        d_real = [d(real.target(j)) for j, d in zip(levels, self.discs)]
+        d_fake = [d(o.detach()) for d, o in zip(self.discs, outs)]
+        real_masks = [real.masks(j, tuple(dr.shape[2:]), cfg) for j, dr in zip(levels, d_real)]
+        dl = discriminator_loss_levels(d_real, d_fake, real_masks, fake_masks, cfg)
         self.opt_d.zero_grad(set_to_none=True)
-        d_total.backward()
+        dl["total"].backward()
         self.opt_d.step()
         return {
-            "g_total": g_total.item(), "gan": g_gan.item(), "down": g_down.item(), "up": g_up.item(),
-            "d_total": d_total.item(), "d_real": d_real_sum.item(), "d_fake": d_fake_sum.item(),
+            "g_total": g["total"].item(), "gan": g["gan"].item(), "down": g["down"].item(), "up": g["up"].item(),
+            "d_total": dl["total"].item(), "d_real": dl["real"].item(), "d_fake": dl["fake"].item(),
         }
 
     def iteration(self) -> dict[str, float]:
@@ -380,8 +364,6 @@ class Trainer:
     # ------------------------------------------------------------------ checkpoints
 
     def _meta(self) -> dict[str, Any]:
-        import torch
-
         return {
             "step": self.step,
             "seed": self.tcfg.seed,
@@ -397,8 +379,6 @@ class Trainer:
         }
 
     def checkpoint(self, full: bool = True) -> Checkpoint:
-        import torch
-
         ex = self.exemplars
         vocab = ex[0].part_names
         return Checkpoint(
@@ -417,8 +397,6 @@ class Trainer:
 
     def restore(self, path: Path) -> None:
         """Continue from a full checkpoint written by this trainer's configuration."""
-        import torch
-
         ck = load_checkpoint(path, training_state=True)
         same_ablation = ck.training.get("ablation", "full") == self.tcfg.ablation  # absent: written before the key
         if ck.config != self.cfg or ck.style_names != tuple(e.name for e in self.exemplars) or not same_ablation:
@@ -448,8 +426,6 @@ class _Previews:
         self.trainer, self.folder, self.samples = trainer, folder, None
 
     def write(self, step: int) -> Path:
-        from model.previews import preview_samples, write_preview
-
         t = self.trainer
         if self.samples is None:
             self.samples = preview_samples(t.exemplars, t.cfg, t.aug, n=4)
