@@ -11,7 +11,8 @@ Inference mirrors the training crops (``model/data.py``): the generator runs onc
 side (padded with empty cells where the box touches the grid border), with part
 and style labels of empty cells copied from the nearest occupied cell; the output
 is cut back to the grid, and fine voxels outside that crop — more than one coarse
-cell away from any occupied cell — are empty (0). Styles in the output are the input's style
+cell away from any occupied cell — are empty (0). A model whose config sets
+``min_cell_fill`` then gets ``min_fill_projection`` (thin parts cannot vanish). Styles in the output are the input's style
 indices (into ``grid.style_names``), nearest-upsampled to every fine voxel.
 
 Performance (CPU): weights in ``channels_last_3d``, ``torch.inference_mode``, and
@@ -38,8 +39,8 @@ from model.provenance import checkpoint_style_set, exemplar_extras
 from model.upsample import fill_styles_everywhere, nearest_upsample
 from model.windows import blockwise_forward
 from core.errors import DetailizeError
+from core.grid import ISO_LEVEL, FineGrid, LabeledGrid
 from core.recipe import Device
-from core.grid import FineGrid, LabeledGrid
 
 #: The shipped model, used when no checkpoint is given.
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "things.pt"
@@ -79,6 +80,35 @@ def resolve_device(device: Device | str) -> "torch.device":  # noqa: F821 - torc
         raise DetailizeError("device 'cuda' was asked for but no CUDA GPU is available", field="device",
                              hint="use device: auto or cpu")
     return torch.device(text)
+
+
+def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, min_fill: float,
+                        iso: float = ISO_LEVEL) -> np.ndarray:
+    """Raise the field of every occupied coarse cell whose block is less than ``min_fill`` occupied.
+
+    For such a cell, the field of its ``factor``³ block is raised uniformly by the
+    smallest amount (+1e-4) that puts ``ceil(min_fill · factor³)`` of its voxels above
+    ``iso``, and clipped to 1: the block keeps the generator's own shape, only grown
+    (a block the generator left empty becomes a solid block). Other cells are untouched.
+    So every occupied input cell is at least ``min_fill`` occupied in the output, and a
+    stroke or spire one coarse cell wide cannot vanish.
+
+    Args:
+        fine: (f·X, f·Y, f·Z) float32 field in [0, 1]; modified in place and returned.
+        occupancy: (X, Y, Z) bool coarse cells.
+    """
+    if min_fill <= 0 or not occupancy.any():
+        return fine
+    x, y, z = occupancy.shape
+    f, n = factor, factor**3
+    fill = (fine > iso).reshape(x, f, y, f, z, f).mean(axis=(1, 3, 5))
+    k = int(np.ceil(min_fill * n))
+    for cx, cy, cz in np.argwhere(occupancy & (fill < min_fill)):
+        block = (slice(cx * f, cx * f + f), slice(cy * f, cy * f + f), slice(cz * f, cz * f + f))
+        values = fine[block]
+        kth = float(np.partition(values.ravel(), n - k)[n - k])  # the k-th largest value
+        fine[block] = np.minimum(values + (iso - kth + 1e-4), 1.0)
+    return fine
 
 
 def cpu_threads() -> int:
@@ -238,4 +268,4 @@ class DecollageDetailizer:
             crop = out.float().clamp_(0.0, 1.0).cpu().numpy()
         fine = np.zeros(tuple(n * f for n in occ.shape), dtype=np.float32)
         fine[tuple(slice(s.start * f, s.stop * f) for s in src)] = crop
-        return fine
+        return min_fill_projection(fine, occ, f, self.ckpt.config.min_cell_fill)

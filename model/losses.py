@@ -149,8 +149,9 @@ def structure_losses(outputs: Sequence[Tensor], prevs: Sequence[Tensor], lc: Los
             for whole shapes). The pooling factor is their resolution ratio (2 in the
             pyramid, 16 for the ×16 output against the coarse input without it).
     Returns:
-        ``down``/``up`` (un-weighted sums), ``down{k}``/``up{k}`` per output and
-        ``total`` = γ_down·down + γ_up·up.
+        ``down``/``up`` (un-weighted sums), ``down{k}``/``up{k}`` per output,
+        ``up_weighted`` = Σ_k γ_up·w_k·up{k} (w = ``lc.up_level_weights``, 1 when empty) and
+        ``total`` = γ_down·down + up_weighted.
     """
     if len(prevs) != len(outputs):
         raise DetailizeError(f"{len(outputs)} outputs but {len(prevs)} previous grids", field="prevs",
@@ -161,7 +162,11 @@ def structure_losses(outputs: Sequence[Tensor], prevs: Sequence[Tensor], lc: Los
         out[f"down{j}"], out[f"up{j}"] = structure_pair(cur, prev, lc, factor=cur.shape[-1] // prev.shape[-1])
     out["down"] = sum(out[f"down{j}"] for j in range(len(outputs)))  # type: ignore[assignment]
     out["up"] = sum(out[f"up{j}"] for j in range(len(outputs)))  # type: ignore[assignment]
-    out["total"] = lc.gamma_down * out["down"] + lc.gamma_up * out["up"]
+    if lc.up_level_weights:
+        out["up_weighted"] = sum(lc.up_weight(k) * out[f"up{k}"] for k in range(len(outputs)))  # type: ignore
+    else:
+        out["up_weighted"] = lc.gamma_up * out["up"]
+    out["total"] = lc.gamma_down * out["down"] + out["up_weighted"]
     return out
 
 
@@ -214,7 +219,7 @@ def generator_adversarial_loss(
     alphas: Sequence[Tensor | float] | None,
     cfg: ModelConfig,
 ) -> dict[str, Tensor]:
-    """The adversarial G step's loss: Σ_levels GAN + γ_down·Σ L_down + γ_up·Σ L_up.
+    """The adversarial G step's loss: Σ_levels GAN + γ_down·Σ L_down + Σ_levels γ_up·w_k·L_up.
 
     Args:
         d_fake: per supervised level (``cfg.supervised_levels``), (B, N+1, *S_k) discriminator
@@ -237,7 +242,7 @@ def generator_adversarial_loss(
     out["gan"] = sum(out[f"gan{j}"] for j in levels[: len(d_fake)])  # type: ignore[assignment]
     st = structure_losses(outputs, prevs, lc)
     out.update({k: v for k, v in st.items() if k != "total"})
-    out["total"] = out["gan"] + lc.gamma_down * out["down"] + lc.gamma_up * out["up"]
+    out["total"] = out["gan"] + lc.gamma_down * out["down"] + out["up_weighted"]
     return out
 
 

@@ -123,15 +123,20 @@ class Generator(nn.Module):
     (``cfg.pyramid`` False) only the last level has a head and an output.
 
     Conv weights use PyTorch's default initialisation (seed with ``torch.manual_seed``
-    for reproducible weights); the style codes start at zero.
+    for reproducible weights); the style codes start at zero, or random with
+    ``cfg.style_init_std``. With ``cfg.output_mask`` every output is zero outside the
+    occupied coarse cells.
     """
 
     def __init__(self, cfg: ModelConfig) -> None:
         super().__init__()
         self.cfg = cfg
         z, p = cfg.style_dim, (cfg.n_parts if cfg.use_part_labels else 0)
-        # Zero-initialised, as in the reference: styles separate only through training.
-        self.style_codes = nn.Parameter(torch.zeros(z, cfg.n_styles))
+        # Zeros as in the reference (styles separate only as training moves them), or N(0, std²).
+        codes = torch.zeros(z, cfg.n_styles)
+        if cfg.style_init_std > 0:
+            codes.normal_(0.0, cfg.style_init_std)
+        self.style_codes = nn.Parameter(codes)
         convs, in_ch = [], 1 + p + z
         for width, dil in zip(cfg.backbone_widths, cfg.backbone_dilations):
             convs.append(nn.Conv3d(in_ch, width, 3, padding=dil, dilation=dil))
@@ -203,7 +208,7 @@ class Generator(nn.Module):
             pyramid, [(B, 1, 2^L D, 2^L H, 2^L W)] without it.
         """
         x, cond = self.trunk(occupancy, part_onehot, z)
-        return [o for _, o in self.run_levels(x, cond, 0, all_heads=not final_only)[1]]
+        return [o for _, o in self.run_levels(x, cond, 0, all_heads=not final_only, occupancy=occupancy)[1]]
 
     def trunk(self, occupancy: Tensor, part_onehot: Tensor | None, z: Tensor) -> tuple[Tensor, Tensor]:
         """Check the inputs and run the backbone at the coarse resolution.
@@ -228,7 +233,8 @@ class Generator(nn.Module):
         return x, cond
 
     def run_levels(
-        self, x: Tensor, cond: Tensor, start: int, stop: int | None = None, *, all_heads: bool = True
+        self, x: Tensor, cond: Tensor, start: int, stop: int | None = None, *, all_heads: bool = True,
+        occupancy: Tensor | None = None,
     ) -> tuple[Tensor, list[tuple[int, Tensor]]]:
         """The level loop: levels ``start .. stop − 1`` (default: to the last) on features ``x``.
 
@@ -242,6 +248,8 @@ class Generator(nn.Module):
             cond: (B, K, d, h, w) the conditioning of the same coarse cells (``trunk``).
             all_heads: compute every supervised level's side head; False: only the last
                 level of the generator has one (inference).
+            occupancy: (B, 1, d, h, w) the coarse occupancy of the same cells; needed (and
+                only read) with ``cfg.output_mask``, which zeroes outputs outside it.
         Returns:
             (features leaving level ``stop − 1``, [(level j, occupancy (B, 1, 2^(j+1)·d, …) in
             [0, 1] by the leaky clamp), …] for every level run whose head was computed).
@@ -253,7 +261,13 @@ class Generator(nn.Module):
             x = torch.cat([x, upsample_nearest(cond, 2**j)], 1)
             x, logit = self.levels[j](x, with_head=all_heads or j == cfg.n_levels - 1)
             if logit is not None:
-                outs.append((j, leaky_clamp(logit, cfg.clamp_slope)))
+                out = leaky_clamp(logit, cfg.clamp_slope)
+                if cfg.output_mask:
+                    if occupancy is None:
+                        raise DetailizeError("output_mask needs the coarse occupancy", field="occupancy",
+                                             hint="pass occupancy= to run_levels")
+                    out = out * upsample_nearest(occupancy.to(out.dtype), 2 ** (j + 1))
+                outs.append((j, out))
         return x, outs
 
     def _check(self, occ: Tensor, parts: Tensor | None, z: Tensor) -> None:

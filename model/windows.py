@@ -57,17 +57,18 @@ def _trunk(gen: "Generator", occupancy: "Tensor", part_onehot: "Tensor | None", 
     (1, K, X, Y, Z), outputs of the supervised whole levels if ``keep`` else []).
     """
     x, cond = gen.trunk(occupancy, part_onehot, z)
-    x, outs = gen.run_levels(x, cond, 0, whole_levels, all_heads=keep)
+    x, outs = gen.run_levels(x, cond, 0, whole_levels, all_heads=keep, occupancy=occupancy)
     return x, cond, [o for _, o in outs]
 
 
-def fine_on_window(gen: "Generator", x: "Tensor", cond: "Tensor", whole_levels: int, window: Window, halo: int,
-                   keep: bool) -> "list[Tensor]":
+def fine_on_window(gen: "Generator", x: "Tensor", cond: "Tensor", occupancy: "Tensor", whole_levels: int,
+                   window: Window, halo: int, keep: bool) -> "list[Tensor]":
     """Levels ``≥ whole_levels`` on ``window`` (+ halo, clamped to the grid); outputs cropped to the window.
 
     Args:
         x, cond: the whole grid's features entering level ``whole_levels`` and its
             conditioning (``_trunk``); several windows may share them (one trunk forward).
+        occupancy: (1, 1, X, Y, Z) the whole coarse occupancy (``cfg.output_mask``).
         halo: ``halo_cells(gen.cfg, whole_levels)``.
         keep: every windowed supervised level's output; False: only the last level's
             (a one-element list).
@@ -81,7 +82,8 @@ def fine_on_window(gen: "Generator", x: "Tensor", cond: "Tensor", whole_levels: 
     r = 2**whole_levels
     x = x[:, :, lo[0] * r : hi[0] * r, lo[1] * r : hi[1] * r, lo[2] * r : hi[2] * r].contiguous(memory_format=fmt)
     cond = cond[:, :, lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]].contiguous(memory_format=fmt)
-    _, outs = gen.run_levels(x, cond, whole_levels, all_heads=keep)
+    occ = occupancy[:, :, lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
+    _, outs = gen.run_levels(x, cond, whole_levels, all_heads=keep, occupancy=occ)
     return [out[:, :, *(slice((w.start - a) * 2 ** (j + 1), (w.stop - a) * 2 ** (j + 1)) for w, a in zip(window, lo))]
             for j, out in outs]
 
@@ -102,8 +104,20 @@ def window_forward(gen: "Generator", occupancy: "Tensor", part_onehot: "Tensor |
     """
     if window is None:
         return gen(occupancy, part_onehot, z)
+    return windows_forward(gen, occupancy, part_onehot, z, whole_levels, [window])[0]
+
+
+def windows_forward(gen: "Generator", occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor",
+                    whole_levels: int, windows: "list[Window]") -> "list[list[Tensor]]":
+    """``window_forward`` for several windows of one shape sharing one trunk forward.
+
+    The backbone and levels ``< whole_levels`` run once on the whole grid; the finer
+    levels run once per window. Returns, per window, the list ``window_forward`` gives
+    (the whole levels' output tensors are the same objects in every list).
+    """
     x, cond, outs = _trunk(gen, occupancy, part_onehot, z, whole_levels, keep=True)
-    return outs + fine_on_window(gen, x, cond, whole_levels, window, halo_cells(gen.cfg, whole_levels), keep=True)
+    halo = halo_cells(gen.cfg, whole_levels)
+    return [outs + fine_on_window(gen, x, cond, occupancy, whole_levels, w, halo, keep=True) for w in windows]
 
 
 def blockwise_forward(gen: "Generator", occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor", *,
@@ -136,6 +150,6 @@ def blockwise_forward(gen: "Generator", occupancy: "Tensor", part_onehot: "Tenso
                     near = tuple(slice(max(0, w.start - halo), w.stop + halo) for w in window)
                     if not bool(occ[near].any()):
                         continue
-                block = fine_on_window(gen, x, cond, whole_levels, window, halo, keep=False)[0]
+                block = fine_on_window(gen, x, cond, occupancy, whole_levels, window, halo, keep=False)[0]
                 out[:, :, *(slice(w.start * f, w.stop * f) for w in window)] = block
     return out
