@@ -88,6 +88,7 @@ from model.losses import discriminator_loss_levels, generator_adversarial_loss, 
 from model.monitor import Monitor
 from model.networks import Generator, build_discriminators
 from model.previews import preview_samples, write_preview
+from model.recipes import RECIPES
 from model.views import SampleView, check_window, surface_window
 from model.windows import Window, halo_cells, window_forward, windows_forward  # noqa: F401 - this module's API
 from core.errors import DetailizeError
@@ -130,6 +131,8 @@ class TrainConfig:
         ablation: name of the ``model.ablations`` row this run trains (``full`` = the model),
             recorded in the checkpoints' training meta; a resume must name the same one.
             It is a label: the caller builds the configs with ``ablation_configs``.
+        recipe: name of the ``model.recipes`` recipe (a label recorded like ``ablation``; the
+            caller builds the configs with ``recipe_configs``); a resume must name the same one.
     """
 
     out_dir: str
@@ -148,6 +151,7 @@ class TrainConfig:
     device: Device | str = Device.AUTO
     command: str = ""
     ablation: str = "full"
+    recipe: str = "reference"
     style_lr_mult: float = 1.0
     warmup_iters: int = 0
     warmup_lr: float = 1e-4
@@ -176,6 +180,9 @@ class TrainConfig:
         for ok, name, hint in checks:
             if not ok:
                 raise DetailizeError(f"bad training setting {name} = {getattr(self, name)!r}", field=name, hint=hint)
+        if self.recipe not in RECIPES:
+            raise DetailizeError(f"unknown recipe {self.recipe!r}", field="recipe",
+                                 hint="use one of: " + ", ".join(RECIPES))
         if self.ablation not in ABLATIONS:
             raise DetailizeError(f"unknown ablation {self.ablation!r}", field="ablation",
                                  hint="use one of: " + ", ".join(ABLATIONS))
@@ -358,6 +365,7 @@ class Trainer:
             "seed": self.tcfg.seed,
             "command": self.tcfg.command,
             "ablation": self.tcfg.ablation,
+            "recipe": self.tcfg.recipe,
             "wall_time_s": round(self.wall_s, 3),
             "machine": f"{platform.machine()} {os.cpu_count()} cpus, {self.device.type}"
                        + (f" ({torch.cuda.get_device_name(self.device)})" if self.device.type == "cuda" else ""),
@@ -388,6 +396,7 @@ class Trainer:
         """Continue from a full checkpoint written by this trainer's configuration."""
         ck = load_checkpoint(path, training_state=True)
         same_ablation = ck.training.get("ablation", "full") == self.tcfg.ablation  # absent: written before the key
+        same_ablation &= ck.training.get("recipe", "reference") == self.tcfg.recipe
         if ck.config != self.cfg or ck.style_names != tuple(e.name for e in self.exemplars) or not same_ablation:
             raise DetailizeError("the checkpoint to resume was trained with another config or exemplar set",
                                  file=path, hint="use a new --out folder, or the same settings as that run")
@@ -439,6 +448,7 @@ def train(
     part_aliases: dict[str, str] | None = None,
     progress: Callable[[int, int, dict[str, float]], None] | None = None,
     style_set: dict | None = None,
+    stop_after_s: float | None = None,
 ) -> TrainResult:
     """Train (or continue training) up to ``tcfg.steps`` iterations; see the module docstring.
 
@@ -448,6 +458,10 @@ def train(
         progress: called after every iteration with (step, total, losses) — the CLI's progress bar.
         style_set: the set's provenance (``stylesets.provenance.StyleSetRecord.to_json()``: name, digest,
             each exemplar's licence), recorded in the checkpoints so built assets can credit exemplars.
+        stop_after_s: stop after the first iteration that ends this many seconds after the
+            start (a time-boxed session, e.g. ``scripts/train_resume.py`` on a lent GPU); the
+            state is saved to ``last.pt`` and ``model.pt`` as at the end, and the same call
+            continues later.
     Raises:
         DetailizeError: inconsistent set/config, unusable resume checkpoint, unwritable folder,
             or a loss that became NaN/inf (training diverged; the last checkpoint is kept).
@@ -465,6 +479,7 @@ def train(
     times = []
     previews = _Previews(trainer, out / "previews") if tcfg.preview_every else None
     monitor = Monitor(trainer.exemplars, cfg, trainer.aug)
+    start = time.perf_counter()
     with open(log_path, "a", encoding="utf-8") as log:
         while trainer.step < tcfg.steps:
             t0 = time.perf_counter()
@@ -480,12 +495,15 @@ def train(
                 row["monitor"] = monitor.figures(trainer.gen)
             log.write(json.dumps(row) + "\n")
             log.flush()
-            if trainer.step % tcfg.checkpoint_every == 0 or trainer.step == tcfg.steps:
+            out_of_time = stop_after_s is not None and time.perf_counter() - start >= stop_after_s
+            if trainer.step % tcfg.checkpoint_every == 0 or trainer.step == tcfg.steps or out_of_time:
                 save_checkpoint(last, trainer.checkpoint(full=True))
             if previews and (trainer.step % tcfg.preview_every == 0 or trainer.step == tcfg.steps):
                 previews.write(trainer.step)
             if progress is not None:
                 progress(trainer.step, tcfg.steps, losses)
+            if out_of_time:
+                break
     save_checkpoint(model_path, trainer.checkpoint(full=False))
     return TrainResult(trainer.step, last, model_path, log_path, losses,
                        float(np.mean(times)) if times else 0.0)
