@@ -101,9 +101,9 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
         return fine
     x, y, z = occupancy.shape
     f, n = factor, factor**3
-    fill = (fine > iso).reshape(x, f, y, f, z, f).mean(axis=(1, 3, 5))
     k = int(np.ceil(min_fill * n))
-    for cx, cy, cz in np.argwhere(occupancy & (fill < min_fill)):
+    above = (fine > iso).reshape(x, f, y, f, z, f).sum(axis=(1, 3, 5), dtype=np.int32)
+    for cx, cy, cz in np.argwhere(occupancy & (above < k)):
         block = (slice(cx * f, cx * f + f), slice(cy * f, cy * f + f), slice(cz * f, cz * f + f))
         values = fine[block]
         kth = float(np.partition(values.ravel(), n - k)[n - k])  # the k-th largest value
