@@ -23,8 +23,8 @@ from core.recipe import Device
 from model.ablations import ABLATIONS, ablation_configs
 from model.config import ModelConfig
 from model.data import exemplars_from_set
-from stylesets.provenance import record_of_set
 from model.recipes import RECIPES, recipe_configs
+from stylesets.provenance import record_of_set
 from stylesets.registry import resolve_style_set
 
 
