@@ -19,10 +19,11 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from cli.console import fail, stderr
 from core.errors import DecollageError
 from core.files import ensure_writable_dir
+from core.recipe import Device
 from model.ablations import ABLATIONS, ablation_configs
 from model.config import ModelConfig
 from model.data import exemplars_from_set
-from model.train import TrainConfig, train
+from model.recipes import RECIPES, recipe_configs
 from stylesets.provenance import record_of_set
 from stylesets.registry import resolve_style_set
 
@@ -36,6 +37,8 @@ class Layout(str, Enum):
 
 #: ``--ablation`` choices: the named rows of ``model.ablations`` (``full`` = the model itself).
 Ablation = Enum("Ablation", {name: name for name in ABLATIONS}, type=str)
+#: ``--recipe`` choices: the named recipes of ``model.recipes``.
+Recipe = Enum("Recipe", {name: name for name in RECIPES}, type=str)
 
 
 def train_command(
@@ -48,8 +51,11 @@ def train_command(
                                       help="Train a Table 4 ablation or baseline of the layout instead of the full "
                                            "model (model.ablations; e.g. no_pyramid, decor_gan); recorded in "
                                            "the checkpoint."),
+    recipe: Recipe = typer.Option("reference", "--recipe",
+                                  help="Training recipe (model.recipes): reference (the shipped model's) or warmup "
+                                       "(issue 15's); recorded in the checkpoint, a resume must name the same."),
     seed: int = typer.Option(0, "--seed"),
-    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda or cuda:N."),
+    device: str = typer.Option(Device.AUTO.value, "--device", help="auto, cpu, cuda or cuda:N."),
     checkpoint_every: int = typer.Option(100, "--checkpoint-every", help="Iterations between last.pt saves."),
     preview_every: int = typer.Option(100, "--preview-every", help="Iterations between preview PNGs (0: none)."),
     recon_early_iters: int = typer.Option(5000, "--recon-early-iters",
@@ -61,7 +67,7 @@ def train_command(
 
     try:
         _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_every, preview_every,
-               recon_early_iters, resume, quiet, ablation.value)
+               recon_early_iters, resume, quiet, ablation.value, recipe.value)
     except DecollageError as exc:
         fail(exc)
     except KeyboardInterrupt:
@@ -70,7 +76,9 @@ def train_command(
 
 
 def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_every, preview_every,
-           recon_early_iters, resume, quiet, ablation="full") -> None:
+           recon_early_iters, resume, quiet, ablation="full", recipe="reference") -> None:
+    from model.train import TrainConfig, train  # torch: imported when training, not at every CLI start
+
     console = stderr()
     ensure_writable_dir(out)
     sset = resolve_style_set(style_set, progress=None if quiet else lambda n: console.print(f"  voxelized {n}"))
@@ -79,13 +87,14 @@ def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_e
     cfg = make(n_parts=len(sset.vocabulary.parts), n_styles=len(exemplars))
     tcfg = TrainConfig(out_dir=str(out), steps=steps, seed=seed, device=device, resolution=resolution,
                        checkpoint_every=checkpoint_every, preview_every=preview_every,
-                       recon_early_iters=recon_early_iters, ablation=ablation,
+                       recon_early_iters=recon_early_iters, ablation=ablation, recipe=recipe,
                        command="decollage " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
-    cfg, tcfg = ablation_configs(ablation, cfg, tcfg)
+    cfg, tcfg = ablation_configs(ablation, *recipe_configs(recipe, cfg, tcfg))
     if not quiet:
         console.print(f"training on set '{sset.name}' ({len(exemplars)} styles, parts "
                       f"{', '.join(sset.vocabulary.parts)}), layout {layout.value}, R = {resolution}"
-                      + ("" if ablation == "full" else f", ablation {ablation} ({ABLATIONS[ablation][0]})"))
+                      + ("" if ablation == "full" else f", ablation {ablation} ({ABLATIONS[ablation][0]})")
+                      + f", recipe {recipe}")
     bar = Progress(TextColumn("train"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[losses]}"),
                    TimeElapsedColumn(), TimeRemainingColumn(), console=console, disable=quiet or not console.is_terminal)
     lines = not quiet and not console.is_terminal

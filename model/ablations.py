@@ -1,4 +1,4 @@
-"""Named ablation configs matching the rows of the paper's Table 4 (method.md §7), for ``decollage eval``.
+"""Named ablation configs matching the rows of the DECOLLAGE paper's Table 4, for ``decollage eval``.
 
 Each entry changes the full model's ``ModelConfig`` / ``TrainConfig`` in one
 way; ``ablation_configs(name, cfg, tcfg)`` returns the pair to train with.
@@ -17,7 +17,7 @@ The pyramid rows (``ModelConfig.pyramid``; paper Table 4 (a) vs (b)–(i)):
   (max-pool ×16 / nearest ×16), and so is adaptive α: the row measures the
   pyramid alone.
 - ``decor_gan``: the DECOR-GAN* baseline as the paper ran it (Table 4 (a) is
-  labelled "P ✗ (DECOR-GAN*)"; §1.4, §3 of method.md): the same single ×16
+  labelled "P ✗ (DECOR-GAN*)"; DECOR-GAN's published code): the same single ×16
   generator and one discriminator, no structure-preserving losses (they are
   defined between pyramid levels; γ_down = γ_up = 0), one style-head weight
   α2 everywhere (DECOR-GAN's α, no adaptive α), and per-region styles through

@@ -6,9 +6,9 @@ one doubling level per entry of ``levels``), one discriminator per supervised le
 
 - ``ModelConfig.lean(P, N)``: the CPU default (about 1.1 M generator parameters;
   no 3×3×3 convolution at the finest resolution, sub-pixel "voxel shuffle" for the
-  last level), sized from ``reference/perf-envelope.md``'s measurements;
+  last level), sized from CPU measurements (time and memory in ``lean``'s docstring);
 - ``ModelConfig.paper(P, N)``: the layout of the published code
-  (``reference/method.md`` §1.1/§1.2): 18.8 M generator parameters for P=5, N=32.
+  (the published DECOLLAGE code's networks): 18.8 M generator parameters for P=5, N=32.
 
 ``to_dict``/``from_dict`` round-trip through plain JSON types for checkpoints;
 ``from_dict`` refuses unknown or missing keys and invalid values with a
@@ -41,7 +41,7 @@ class DownLoss(str, Enum):
 
     #: ‖maxpool₂(level j+1) − level j‖², the paper's Eq. (down).
     PAPER_MSE = "paper_mse"
-    #: The published code's hinge on avg/max-pooled cells (method.md §3).
+    #: The published code's hinge on avg/max-pooled cells (``model/losses.py``'s ``down_loss``).
     CODE_HINGE = "code_hinge"
 
 
@@ -130,19 +130,24 @@ class DiscriminatorSpec:
 
 @dataclass(frozen=True)
 class LossConfig:
-    """Loss weights and variants (method.md §3; paper Eq. 1–6).
+    """Loss weights and variants (the DECOLLAGE paper's Eq. 1–6 and its published code).
 
     Attributes:
         beta_recon: weight of the per-level reconstruction MSE (the code's β=10; the paper has 1).
         gamma_down, gamma_up: weights of the structure-preserving losses (γ1 = γ2 = 10).
         alpha_joint, alpha_other: style-head weight in joint cells / elsewhere (α1, α2).
         joint_radius: joints are voxels within this many *fine* voxels of two parts.
-        down_loss: paper MSE or the code's hinge (default: code, per method.md's advice).
+        down_loss: paper MSE or the code's hinge (default: the code's, whose numbers the paper reports).
         stop_gradient: detach the coarser level in L_down / L_up (paper: yes; code: no).
         down_hinge_high: the hinge's "already occupied" max-pool level (code: 0.6; the
             other thresholds are the project's iso level 0.4).
         target_smoothing, smoothing_sigma, smoothing_passes: how the training targets
             are smoothed (fine voxels).
+        up_level_weights: per supervised level, a factor on γ_up (empty: 1 at every level).
+            L_up charges a detailed level for differing from the nearest-upsampled level
+            before it, so at the fine levels it pulls towards the smoother grid; e.g.
+            ``(1, 1, 0.1, 0.1)`` keeps it for structure at 32³/64³ and lowers it at
+            128³/256³. L_down is not affected.
     """
 
     beta_recon: float = 10.0
@@ -157,6 +162,11 @@ class LossConfig:
     target_smoothing: TargetSmoothing = TargetSmoothing.PROGRESSIVE
     smoothing_sigma: float = 1.0
     smoothing_passes: int = 4
+    up_level_weights: tuple[float, ...] = ()
+
+    def up_weight(self, k: int) -> float:
+        """γ_up times the factor of the k-th supervised output (``up_level_weights``)."""
+        return self.gamma_up * (self.up_level_weights[k] if self.up_level_weights else 1.0)
 
 
 def _rf7(w: tuple[int, int, int]) -> DiscriminatorSpec:
@@ -200,6 +210,17 @@ class ModelConfig:
             are read as ``True`` (they can only be full pyramids; format version 1).
         leaky_slope: LeakyReLU slope everywhere (0.02).
         clamp_slope: slope of the output's leaky clamp outside [0, 1] (0.002).
+        style_init_std: the style codes start as N(0, std²) draws (seeded by
+            ``torch.manual_seed``); 0 = all zeros, the published code's choice, where the
+            codes separate only as fast as their gradient moves them.
+        output_mask: every level's output is multiplied by the nearest-upsampled coarse
+            occupancy, so nothing is generated outside the occupied coarse cells (a
+            training shape's fine voxels always lie inside them: the coarse grid is their
+            ×16 max-pool). In training and inference alike.
+        min_cell_fill: inference only (``model/infer.py``'s ``min_fill_projection``): every
+            occupied coarse cell whose 16³ block is less than this fraction occupied (≥ the
+            0.4 iso level) gets the smallest uniform raise of its field that brings it to
+            this fraction, so strokes, spires and limbs one cell wide cannot vanish. 0 = off.
         losses: loss weights and variants.
     """
 
@@ -214,6 +235,9 @@ class ModelConfig:
     pyramid: bool = True
     leaky_slope: float = 0.02
     clamp_slope: float = 0.002
+    style_init_std: float = 0.0
+    output_mask: bool = False
+    min_cell_fill: float = 0.0
     losses: LossConfig = field(default_factory=LossConfig)
 
     def __post_init__(self) -> None:
@@ -256,7 +280,7 @@ class ModelConfig:
 
     @classmethod
     def paper(cls, n_parts: int, n_styles: int, **overrides: Any) -> "ModelConfig":
-        """The published layout (method.md §1.1/§1.2): g_dim 32, 18.8 M + 10.9 M parameters for P=5, N=32."""
+        """The published code's layout: g_dim 32, 18.8 M + 10.9 M parameters for P=5, N=32."""
         base = cls(
             n_parts=n_parts,
             n_styles=n_styles,
@@ -350,6 +374,10 @@ class ModelConfig:
             pyramid=r.bool("pyramid", default=True),
             leaky_slope=r.float("leaky_slope"),
             clamp_slope=r.float("clamp_slope"),
+            # the three below are absent from checkpoints written before them: the old behaviour
+            style_init_std=r.float("style_init_std", default=0.0),
+            output_mask=r.bool("output_mask", default=False),
+            min_cell_fill=r.float("min_cell_fill", default=0.0),
             losses=_losses_from(r.get("losses"), f"{path}.losses"),
         )
         r.done()
@@ -427,12 +455,21 @@ def _validate(cfg: ModelConfig) -> None:
                 where,
                 "use a smaller stride at the first levels",
             )
+    if cfg.style_init_std < 0:
+        raise _bad("style_init_std must be ≥ 0", "style_init_std", "0 (zeros, the reference) or e.g. 1")
+    if not isinstance(cfg.output_mask, bool):
+        raise _bad(f"output_mask must be true/false, got {cfg.output_mask!r}", "output_mask", "use a boolean")
+    if not 0 <= cfg.min_cell_fill <= 1:
+        raise _bad("min_cell_fill must lie in [0, 1]", "min_cell_fill", "0 (off) or e.g. 0.5")
     if not 0 < cfg.leaky_slope < 1 or not 0 < cfg.clamp_slope < 1:
         raise _bad("slopes must lie in (0, 1)", "leaky_slope", "the paper uses 0.02 and 0.002")
     lc = cfg.losses
     for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma"):
         if getattr(lc, name) < 0:
             raise _bad(f"{name} must be ≥ 0", f"losses.{name}", "weights are non-negative")
+    if lc.up_level_weights and (len(lc.up_level_weights) != len(supervised) or min(lc.up_level_weights) < 0):
+        raise _bad(f"up_level_weights needs {len(supervised)} non-negative factors, got {lc.up_level_weights}",
+                   "losses.up_level_weights", "one factor per supervised level, or () for 1 everywhere")
     if lc.joint_radius < 0 or lc.smoothing_passes < 0:
         raise _bad("joint_radius and smoothing_passes must be ≥ 0", "losses.joint_radius", "use 2 and 4")
     if not isinstance(lc.down_loss, DownLoss) or not isinstance(lc.target_smoothing, TargetSmoothing):
@@ -478,8 +515,8 @@ class _Reader:
             raise _bad(f"expected an integer, got {v!r}", f"{self.path}.{key}", "use an integer")
         return v
 
-    def float(self, key: str) -> float:
-        v = self.get(key)
+    def float(self, key: str, default: Any = _MISSING) -> float:
+        v = self.get(key, default)
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise _bad(f"expected a number, got {v!r}", f"{self.path}.{key}", "use a number")
         return float(v)
@@ -495,6 +532,15 @@ class _Reader:
         if not isinstance(v, list):
             raise _bad(f"expected a list, got {v!r}", f"{self.path}.{key}", "use a list")
         return v
+
+    def float_list(self, key: str, default: Any = _MISSING) -> list[float]:
+        v = self.get(key, default)
+        if not isinstance(v, list):
+            raise _bad(f"expected a list, got {v!r}", f"{self.path}.{key}", "use a list")
+        for i, x in enumerate(v):
+            if isinstance(x, bool) or not isinstance(x, (int, float)):
+                raise _bad(f"expected a number, got {x!r}", f"{self.path}.{key}[{i}]", "use numbers")
+        return [float(x) for x in v]
 
     def int_list(self, key: str) -> list[int]:
         v = self.list(key)
@@ -550,6 +596,7 @@ def _losses_from(data: Any, path: str) -> LossConfig:
         target_smoothing=r.enum("target_smoothing", TargetSmoothing),
         smoothing_sigma=r.float("smoothing_sigma"),
         smoothing_passes=r.int("smoothing_passes"),
+        up_level_weights=tuple(r.float_list("up_level_weights", default=[])),
     )
     r.done()
     return lc

@@ -1,4 +1,4 @@
-"""Training data for DECOLLAGE: exemplars in memory and seeded on-the-fly augmentation (method.md §2).
+"""Training data for DECOLLAGE: exemplars in memory and seeded on-the-fly augmentation (the published DECOLLAGE code's, with its issues fixed).
 
 Role: turn a list of part-labelled style exemplars into training samples — a
 coarse input (occupancy + part labels + per-part style assignment) and one
@@ -99,7 +99,7 @@ class Exemplar:
 
 @dataclass(frozen=True)
 class AugmentConfig:
-    """Augmentation settings (method.md §2; defaults are the reference's).
+    """Augmentation settings (defaults are the published code's).
 
     Attributes:
         resolution: R, the fine grid edge the shapes are sized for (256; smaller for cheap training).

@@ -1,4 +1,4 @@
-"""DECOLLAGE losses as pure functions returning named tensors (method.md §3, paper Eq. 1–6).
+"""DECOLLAGE losses as pure functions returning named tensors (the DECOLLAGE paper's Eq. 1–6 and its published code).
 
 Every function returns ``dict[str, Tensor]`` with a ``"total"`` entry (what to
 back-propagate) plus named, un-weighted parts for logging. Shapes: occupancy
@@ -138,99 +138,134 @@ def structure_pair(fine: Tensor, coarse: Tensor, lc: LossConfig, factor: int) ->
             up_loss(fine, coarse, lc.stop_gradient, factor=factor))
 
 
-def structure_losses(outputs: Sequence[Tensor], coarse_input: Tensor, lc: LossConfig) -> dict[str, Tensor]:
-    """L_down and L_up summed over all outputs, each against the one before, the first against the coarse input.
+def structure_losses(outputs: Sequence[Tensor], prevs: Sequence[Tensor], lc: LossConfig) -> dict[str, Tensor]:
+    """L_down and L_up summed over all outputs, each against the grid before it on the same cells.
 
-    ``outputs`` are the generator's (every level, or only the last without the pyramid:
-    then the ×16 output is compared with the coarse input (B, 1, X, Y, Z) directly); the
-    pooling factor is the resolution ratio of neighbouring grids. Returns ``down``/``up``
-    (un-weighted sums), ``down{k}``/``up{k}`` per output, and ``total`` = γ_down·down + γ_up·up.
+    Args:
+        outputs: the generator's supervised outputs (every level, or only the last without
+            the pyramid), each (B, 1, ...), whole or cut to a window (``model/train.py``).
+        prevs: per output, the grid before it cut to the same cells: the coarse input
+            (B, 1, X, Y, Z) for the first, else the previous output (``whole_shape_prevs``
+            for whole shapes). The pooling factor is their resolution ratio (2 in the
+            pyramid, 16 for the ×16 output against the coarse input without it).
+    Returns:
+        ``down``/``up`` (un-weighted sums), ``down{k}``/``up{k}`` per output,
+        ``up_weighted`` = Σ_k γ_up·w_k·up{k} (w = ``lc.up_level_weights``, 1 when empty) and
+        ``total`` = γ_down·down + up_weighted.
     """
-    prevs = [coarse_input.to(outputs[0].dtype), *outputs[:-1]]
+    if len(prevs) != len(outputs):
+        raise DetailizeError(f"{len(outputs)} outputs but {len(prevs)} previous grids", field="prevs",
+                             hint="give the grid before every output (whole_shape_prevs)")
     out: dict[str, Tensor] = {}
     for j, (prev, cur) in enumerate(zip(prevs, outputs)):
+        prev = prev.to(cur.dtype)
         out[f"down{j}"], out[f"up{j}"] = structure_pair(cur, prev, lc, factor=cur.shape[-1] // prev.shape[-1])
     out["down"] = sum(out[f"down{j}"] for j in range(len(outputs)))  # type: ignore[assignment]
     out["up"] = sum(out[f"up{j}"] for j in range(len(outputs)))  # type: ignore[assignment]
-    out["total"] = lc.gamma_down * out["down"] + lc.gamma_up * out["up"]
+    if lc.up_level_weights:
+        out["up_weighted"] = sum(lc.up_weight(k) * out[f"up{k}"] for k in range(len(outputs)))  # type: ignore
+    else:
+        out["up_weighted"] = lc.gamma_up * out["up"]
+    out["total"] = lc.gamma_down * out["down"] + out["up_weighted"]
     return out
 
 
 # ----------------------------------------------------------------------------- all levels
+#
+# The assembly the trainer (model/train.py) calls every step. Per supervised level k
+# (``cfg.supervised_levels[k]`` = generator level j) it takes the level's tensors and
+# the discriminator-output masks already aligned with ``d_fake[k]``: the trainer builds
+# them on a window's cells for the windowed levels (``SampleView``), ``whole_shape_masks``
+# / ``whole_shape_alphas`` / ``whole_shape_prevs`` build them for whole shapes.
 
 
-def _stack_masks(samples: Sequence[StyledCoarse], level: int, cfg: ModelConfig, shape: tuple[int, ...]) -> DOutputMasks:
-    """Masks of every batch item for one level, rebuilt from each item's own assignment."""
-    per = [s.masks(level, cfg.discriminator(level), shape, cfg.n_styles) for s in samples]
-    return DOutputMasks(torch.stack([m.style for m in per]), torch.stack([m.global_ for m in per]))
+def whole_shape_prevs(outputs: Sequence[Tensor], coarse_input: Tensor) -> list[Tensor]:
+    """The grid before every output of a whole-shape forward: the coarse input (B, 1, X, Y, Z), then each output."""
+    return [coarse_input.to(outputs[0].dtype), *outputs[:-1]]
 
 
 def _as_seq(x: StyledCoarse | Sequence[StyledCoarse]) -> Sequence[StyledCoarse]:
     return [x] if isinstance(x, StyledCoarse) else x
 
 
+def whole_shape_masks(d_outputs: Sequence[Tensor], samples: StyledCoarse | Sequence[StyledCoarse],
+                      cfg: ModelConfig) -> list[DOutputMasks]:
+    """Per supervised level, the masks of every batch item aligned with ``d_outputs[k]`` (B, N+1, *S_k).
+
+    Each item's masks come from its own (immutable) part→style assignment at every level:
+    the reference overwrote the fake sample's assignment with the real style's one-hot
+    inside its level loop, so only level 0 credited fake parts to their own styles.
+    """
+    items, out = _as_seq(samples), []
+    for j, d in zip(cfg.supervised_levels, d_outputs):
+        per = [s.masks(j, cfg.discriminator(j), tuple(d.shape[2:]), cfg.n_styles) for s in items]
+        out.append(DOutputMasks(torch.stack([m.style for m in per]), torch.stack([m.global_ for m in per])))
+    return out
+
+
+def whole_shape_alphas(d_outputs: Sequence[Tensor], alpha_coarse: Tensor | Sequence[Tensor],
+                       cfg: ModelConfig) -> list[Tensor]:
+    """Per supervised level, the style-head weights (B, 1, *S_k) from per-item (X, Y, Z) maps (``masks.alpha_map``)."""
+    alphas = [alpha_coarse] if isinstance(alpha_coarse, Tensor) else alpha_coarse
+    return [torch.stack([align_to_d_output(a[None], j, cfg.discriminator(j), tuple(d.shape[2:])) for a in alphas])
+            for j, d in zip(cfg.supervised_levels, d_outputs)]
+
+
 def generator_adversarial_loss(
     d_fake: Sequence[Tensor],
     outputs: Sequence[Tensor],
-    coarse_input: Tensor,
-    fake: StyledCoarse | Sequence[StyledCoarse],
+    prevs: Sequence[Tensor],
+    masks: Sequence[DOutputMasks],
+    alphas: Sequence[Tensor | float] | None,
     cfg: ModelConfig,
-    alpha_coarse: Tensor | Sequence[Tensor] | None = None,
 ) -> dict[str, Tensor]:
-    """The adversarial G step's loss: Σ_levels GAN + γ_down·Σ L_down + γ_up·Σ L_up.
+    """The adversarial G step's loss: Σ_levels GAN + γ_down·Σ L_down + Σ_levels γ_up·w_k·L_up.
 
     Args:
-        d_fake: per supervised level (``cfg.supervised_levels``), (B, N+1, *S_j) discriminator
+        d_fake: per supervised level (``cfg.supervised_levels``), (B, N+1, *S_k) discriminator
             outputs on ``outputs`` (not detached).
         outputs: per supervised level, (B, 1, ...) generator outputs.
-        coarse_input: (B, 1, X, Y, Z) binary coarse occupancy given to the generator.
-        fake: per batch item, the coarse labels and part→style assignment of the input.
-        alpha_coarse: per batch item, (X, Y, Z) style-head weights (``masks.alpha_map``);
-            None = ``cfg.losses.alpha_other`` everywhere (no adaptive α).
+        prevs: per output, the grid before it on the same cells (``structure_losses``).
+        masks: per level, the fake sample's masks aligned with ``d_fake[k]``.
+        alphas: per level, (B, 1, *S_k) style-head weights or a number; None =
+            ``cfg.losses.alpha_other`` everywhere (no adaptive α).
     Returns:
-        ``total``, ``gan``, ``down``, ``up`` and per-level ``gan{j}``.
+        ``total``, ``gan``, ``down``, ``up``, per-level ``gan{j}`` (j = generator level) and
+        per-output ``down{k}``/``up{k}``.
     """
-    lc, samples = cfg.losses, _as_seq(fake)
-    alphas = None if alpha_coarse is None else ([alpha_coarse] if isinstance(alpha_coarse, Tensor) else alpha_coarse)
-    out: dict[str, Tensor] = {}
+    lc = cfg.losses
     levels = cfg.supervised_levels
-    for j, d in zip(levels, d_fake):
-        shape = tuple(d.shape[2:])
-        m = _stack_masks(samples, j, cfg, shape)
-        if alphas is None:
-            a: Tensor | float = lc.alpha_other
-        else:
-            a = torch.stack([align_to_d_output(x[None], j, cfg.discriminator(j), shape) for x in alphas])
+    alphas = [lc.alpha_other] * len(d_fake) if alphas is None else alphas
+    out: dict[str, Tensor] = {}
+    for j, d, m, a in zip(levels, d_fake, masks, alphas):
         out[f"gan{j}"] = generator_gan_loss(d, m.style, m.global_, a)["total"]
     out["gan"] = sum(out[f"gan{j}"] for j in levels[: len(d_fake)])  # type: ignore[assignment]
-    st = structure_losses(outputs, coarse_input, lc)
-    out["down"], out["up"] = st["down"], st["up"]
-    out["total"] = out["gan"] + st["total"]
+    st = structure_losses(outputs, prevs, lc)
+    out.update({k: v for k, v in st.items() if k != "total"})
+    out["total"] = out["gan"] + lc.gamma_down * out["down"] + out["up_weighted"]
     return out
 
 
 def discriminator_loss_levels(
     d_real: Sequence[Tensor],
     d_fake: Sequence[Tensor],
-    real: StyledCoarse | Sequence[StyledCoarse],
-    fake: StyledCoarse | Sequence[StyledCoarse],
+    real: Sequence[DOutputMasks],
+    fake: Sequence[DOutputMasks],
     cfg: ModelConfig,
 ) -> dict[str, Tensor]:
-    """Σ_levels of ``discriminator_loss``, with every level's masks rebuilt from the true assignments.
+    """Σ_levels of ``discriminator_loss``: the D step's loss.
 
-    The reference overwrote the fake sample's assignment with the real style's one-hot
-    inside this loop, so only level 0 credited fake parts to their own styles; here the
-    (immutable) ``fake.assignment`` is used at every level.
-
+    Args:
+        d_real, d_fake: per supervised level, the outputs on the real style shape's targets
+            and on the *detached* generated levels.
+        real, fake: per level, their masks (the fake ones from the true per-part assignment
+            at every level; ``whole_shape_masks``).
     Returns:
         ``total``, ``real``, ``fake`` summed over levels and ``real{j}``/``fake{j}`` per level.
     """
-    reals, fakes = _as_seq(real), _as_seq(fake)
     out: dict[str, Tensor] = {}
     levels = cfg.supervised_levels
-    for j, dr, df in zip(levels, d_real, d_fake):
-        rm = _stack_masks(reals, j, cfg, tuple(dr.shape[2:]))
-        fm = _stack_masks(fakes, j, cfg, tuple(df.shape[2:]))
+    for j, dr, df, rm, fm in zip(levels, d_real, d_fake, real, fake):
         terms = discriminator_loss(dr, df, rm, fm)
         out[f"real{j}"], out[f"fake{j}"] = terms["real"], terms["fake"]
     out["real"] = sum(out[f"real{j}"] for j in levels[: len(d_real)])  # type: ignore[assignment]

@@ -1,4 +1,4 @@
-"""Part, style, discriminator-output and joint masks (method.md §1.3).
+"""Part, style, discriminator-output and joint masks (the published DECOLLAGE code's Smask, Dmask and Jmask).
 
 Label convention at this interface: ``core.grid.EMPTY`` (−1) marks empty voxels
 in *inputs*; part indices are 0..P−1 (the reference's 1..P shifted down). Coarse

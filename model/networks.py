@@ -54,7 +54,7 @@ def part_onehot(part_labels: Tensor, occupancy: Tensor, n_parts: int) -> Tensor:
     return onehot * occupancy
 
 
-def _memory_format(module: nn.Module) -> torch.memory_format:
+def memory_format_of(module: nn.Module) -> torch.memory_format:
     """The format the module's 5-D weights were put in (``module.to(memory_format=...)``)."""
     for p in module.parameters():
         if p.dim() == 5 and p.shape[1] > 1 and p.shape[2] > 1:
@@ -106,7 +106,8 @@ def _format_of(x: Tensor) -> torch.memory_format:
     return torch.contiguous_format
 
 
-def _upsample(x: Tensor, factor: int) -> Tensor:
+def upsample_nearest(x: Tensor, factor: int) -> Tensor:
+    """(B, C, D, H, W) → (B, C, f·D, f·H, f·W), nearest (``x`` itself for f = 1)."""
     return x if factor == 1 else F.interpolate(x, scale_factor=factor, mode="nearest")
 
 
@@ -122,15 +123,20 @@ class Generator(nn.Module):
     (``cfg.pyramid`` False) only the last level has a head and an output.
 
     Conv weights use PyTorch's default initialisation (seed with ``torch.manual_seed``
-    for reproducible weights); the style codes start at zero.
+    for reproducible weights); the style codes start at zero, or random with
+    ``cfg.style_init_std``. With ``cfg.output_mask`` every output is zero outside the
+    occupied coarse cells.
     """
 
     def __init__(self, cfg: ModelConfig) -> None:
         super().__init__()
         self.cfg = cfg
         z, p = cfg.style_dim, (cfg.n_parts if cfg.use_part_labels else 0)
-        # Zero-initialised, as in the reference: styles separate only through training.
-        self.style_codes = nn.Parameter(torch.zeros(z, cfg.n_styles))
+        # Zeros as in the reference (styles separate only as training moves them), or N(0, std²).
+        codes = torch.zeros(z, cfg.n_styles)
+        if cfg.style_init_std > 0:
+            codes.normal_(0.0, cfg.style_init_std)
+        self.style_codes = nn.Parameter(codes)
         convs, in_ch = [], 1 + p + z
         for width, dil in zip(cfg.backbone_widths, cfg.backbone_dilations):
             convs.append(nn.Conv3d(in_ch, width, 3, padding=dil, dilation=dil))
@@ -179,6 +185,11 @@ class Generator(nn.Module):
             parts = part_onehot(part_labels.to(dev), occ, self.cfg.n_parts)
         return occ, parts, self.style_field(style_index.to(dev))
 
+    @property
+    def memory_format(self) -> torch.memory_format:
+        """The memory format of the weights (``channels_last_3d`` after ``to(memory_format=...)``)."""
+        return memory_format_of(self)
+
     def forward(
         self, occupancy: Tensor, part_onehot: Tensor | None, z: Tensor, *, final_only: bool = False
     ) -> list[Tensor]:
@@ -196,9 +207,21 @@ class Generator(nn.Module):
             (level j at 2^(j+1)×): [(B, 1, 2D, 2H, 2W), …, (B, 1, 2^L D, 2^L H, 2^L W)] for the
             pyramid, [(B, 1, 2^L D, 2^L H, 2^L W)] without it.
         """
+        x, cond = self.trunk(occupancy, part_onehot, z)
+        return [o for _, o in self.run_levels(x, cond, 0, all_heads=not final_only, occupancy=occupancy)[1]]
+
+    def trunk(self, occupancy: Tensor, part_onehot: Tensor | None, z: Tensor) -> tuple[Tensor, Tensor]:
+        """Check the inputs and run the backbone at the coarse resolution.
+
+        Args: as ``forward``.
+        Returns:
+            (features (B, backbone_widths[-1], D, H, W), conditioning (B, K, D, H, W)): the
+            part one-hot and z that every level concatenates (K = P + style_dim, or style_dim
+            without part labels), both in the weights' memory format.
+        """
         cfg = self.cfg
         self._check(occupancy, part_onehot, z)
-        fmt = _memory_format(self)
+        fmt = memory_format_of(self)
         cond = z if not cfg.use_part_labels else torch.cat([part_onehot, z], 1)  # type: ignore[list-item]
         cond = cond.contiguous(memory_format=fmt)
         x = torch.cat([occupancy.to(z.dtype), cond], 1).contiguous(memory_format=fmt)
@@ -207,14 +230,45 @@ class Generator(nn.Module):
             if i:
                 x = torch.cat([x, zc], 1)
             x = F.leaky_relu(conv(x), cfg.leaky_slope, inplace=True)
+        return x, cond
+
+    def run_levels(
+        self, x: Tensor, cond: Tensor, start: int, stop: int | None = None, *, all_heads: bool = True,
+        occupancy: Tensor | None = None,
+    ) -> tuple[Tensor, list[tuple[int, Tensor]]]:
+        """The level loop: levels ``start .. stop − 1`` (default: to the last) on features ``x``.
+
+        The one loop behind ``forward``, the training windows and blockwise inference
+        (``model/windows.py``), which cut ``x`` and ``cond`` to a window of coarse cells
+        between two levels.
+
+        Args:
+            x: (B, C, 2^start·d, 2^start·h, 2^start·w) features entering level ``start``
+                (the backbone's output for ``start = 0``).
+            cond: (B, K, d, h, w) the conditioning of the same coarse cells (``trunk``).
+            all_heads: compute every supervised level's side head; False: only the last
+                level of the generator has one (inference).
+            occupancy: (B, 1, d, h, w) the coarse occupancy of the same cells; needed (and
+                only read) with ``cfg.output_mask``, which zeroes outputs outside it.
+        Returns:
+            (features leaving level ``stop − 1``, [(level j, occupancy (B, 1, 2^(j+1)·d, …) in
+            [0, 1] by the leaky clamp), …] for every level run whose head was computed).
+        """
+        cfg = self.cfg
+        stop = cfg.n_levels if stop is None else stop
         outs = []
-        for j, level in enumerate(self.levels):
-            last = j == len(self.levels) - 1
-            x = torch.cat([x, _upsample(cond, 2**j)], 1)
-            x, logit = level(x, with_head=last or not final_only)
+        for j in range(start, stop):
+            x = torch.cat([x, upsample_nearest(cond, 2**j)], 1)
+            x, logit = self.levels[j](x, with_head=all_heads or j == cfg.n_levels - 1)
             if logit is not None:
-                outs.append(leaky_clamp(logit, cfg.clamp_slope))
-        return outs
+                out = leaky_clamp(logit, cfg.clamp_slope)
+                if cfg.output_mask:
+                    if occupancy is None:
+                        raise DetailizeError("output_mask needs the coarse occupancy", field="occupancy",
+                                             hint="pass occupancy= to run_levels")
+                    out = out * upsample_nearest(occupancy.to(out.dtype), 2 ** (j + 1))
+                outs.append((j, out))
+        return x, outs
 
     def _check(self, occ: Tensor, parts: Tensor | None, z: Tensor) -> None:
         cfg = self.cfg
@@ -251,7 +305,7 @@ class Discriminator(nn.Module):
         self.slope = slope
 
     def forward(self, x: Tensor) -> Tensor:
-        x = x.contiguous(memory_format=_memory_format(self))
+        x = x.contiguous(memory_format=memory_format_of(self))
         for conv in self.convs:
             x = F.leaky_relu(conv(x), self.slope, inplace=True)
         return torch.sigmoid(self.out(x))

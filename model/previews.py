@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from geometry.preview import render_preview
 from model.config import ModelConfig
 from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, style_sample
 from core.grid import ISO_LEVEL
@@ -31,8 +32,6 @@ def _tile(volume: np.ndarray, tile_px: int) -> "Image.Image":
     """(X, Y, Z) occupancy in [0, 1] → a rendered tile (a blank one where nothing crosses the iso level)."""
     import trimesh
     from PIL import Image
-
-    from geometry.preview import render_preview
 
     if volume.max(initial=0.0) <= ISO_LEVEL:  # nothing to mesh (the padding below is always empty)
         return Image.new("RGB", (tile_px, tile_px), (235, 235, 235))

@@ -1,4 +1,4 @@
-"""DECOLLAGE training: one readable loop (method.md §3), resumable, seeded, CPU- or CUDA-feasible.
+"""DECOLLAGE training: one readable loop (the published code's iteration), resumable, seeded, CPU- or CUDA-feasible.
 
 One iteration (``Trainer.iteration``):
 
@@ -13,6 +13,10 @@ One iteration (``Trainer.iteration``):
 3. **D step** — per level, masked LSGAN on the real style shape's smoothed targets
    and the detached generated levels, with the fake masks built from the true
    per-part assignment at every level (the reference's bug fixed in ``losses``).
+
+Every loss comes from ``model/losses.py``'s assembly (``reconstruction_loss``,
+``generator_adversarial_loss``, ``discriminator_loss_levels``), given the per-level
+masks, α maps and previous grids that ``SampleView`` cuts to each level's cells.
 
 Adam (lr 1e-4, betas 0.9/0.999) for G and one for all Ds; batch 1; variable,
 non-cubic crops (bounding box + one empty coarse cell, ``model.data``).
@@ -51,7 +55,7 @@ Resuming (``resume=True`` and ``last.pt`` present) restores the step, all weight
 both optimizers and the torch RNG; the data of iteration ``i`` is a pure function
 of (seed, i), so a resumed run draws exactly the samples an unbroken run would.
 
-Intended CLI (``cli/app.py`` will map it onto ``train``)::
+The CLI (``cli/train.py``)::
 
     decollage train --set things --out runs/things --steps 3000 [--resolution 128]
                     [--seed 0] [--device auto|cpu|cuda] [--layout lean|paper]
@@ -63,6 +67,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import platform
 import time
@@ -72,13 +77,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
+from model.ablations import ABLATIONS
 from model.checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from model.config import ModelConfig
 from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, rng_for, style_sample
-from model.masks import DOutputMasks, StyledCoarse
-from model.windows import Window, halo_cells, window_forward  # noqa: F401 - part of this module's API
+from model.infer import cpu_threads, resolve_device
+from model.losses import discriminator_loss_levels, generator_adversarial_loss, reconstruction_loss
+from model.monitor import Monitor
+from model.networks import Generator, build_discriminators
+from model.previews import preview_samples, write_preview
+from model.recipes import RECIPES
+from model.views import SampleView, check_window, surface_window
+from model.windows import Window, halo_cells, window_forward, windows_forward  # noqa: F401 - this module's API
 from core.errors import DetailizeError
+from core.recipe import Device
 
 
 @dataclass(frozen=True)
@@ -100,11 +114,25 @@ class TrainConfig:
             finer ones on a random window of ``window_cells``³ coarse cells around the
             surface (``window_cells = 0``: every level on the whole shape).
         adaptive_alpha: α1 in part-joint cells (else α2 everywhere).
-        device: ``auto``, ``cpu``, ``cuda``.
+        device: a ``Device`` (its value, or ``"cuda:N"``, is accepted: ``infer.resolve_device``).
+        style_lr_mult: the style codes' learning rate as a multiple of the generator's
+            (their own Adam parameter group when ≠ 1): codes that start at zero and learn
+            at 1e-4 hardly move, and styles separate only through them.
+        warmup_iters: the first iterations are a supervised reconstruction warm-up: one
+            reconstruction step each, no adversarial or discriminator step.
+        warmup_lr: the generator's learning rate at the start of the warm-up, decayed to
+            ``lr`` along a half cosine over ``warmup_iters`` (``lr`` afterwards).
+        windows_per_step: fine-level windows per reconstruction step, sharing one trunk
+            forward (``windows.windows_forward``); the loss is their mean.
+        monitor_every: iterations between the quick figures of ``model.monitor``
+            (self-reconstruction IOU, style overlap, coarse-cell fill) written to the log
+            row of that step; 0 = never.
         command: the command line that started the run (recorded in checkpoints).
         ablation: name of the ``model.ablations`` row this run trains (``full`` = the model),
             recorded in the checkpoints' training meta; a resume must name the same one.
             It is a label: the caller builds the configs with ``ablation_configs``.
+        recipe: name of the ``model.recipes`` recipe (a label recorded like ``ablation``; the
+            caller builds the configs with ``recipe_configs``); a resume must name the same one.
     """
 
     out_dir: str
@@ -120,11 +148,19 @@ class TrainConfig:
     whole_levels: int = 2
     window_cells: int = 4
     adaptive_alpha: bool = True
-    device: str = "auto"
+    device: Device | str = Device.AUTO
     command: str = ""
     ablation: str = "full"
+    recipe: str = "reference"
+    style_lr_mult: float = 1.0
+    warmup_iters: int = 0
+    warmup_lr: float = 1e-4
+    windows_per_step: int = 1
+    monitor_every: int = 0
 
     def __post_init__(self) -> None:
+        if isinstance(self.device, str) and not isinstance(self.device, Device) and self.device in set(Device):
+            object.__setattr__(self, "device", Device(self.device))
         checks = (
             (self.steps >= 0, "steps", "use 0 or more iterations"),
             # style-sample draws are indexed it·8 + r, so at most 8 reconstruction steps
@@ -135,12 +171,18 @@ class TrainConfig:
             (self.resolution >= 16, "resolution", "use 256 (the paper) or 128"),
             (self.window_cells >= 0 and self.whole_levels >= 0, "window_cells", "use 0 (no windows) or ≥ 2"),
             (self.lr > 0, "lr", "the reference uses 1e-4"),
+            (self.style_lr_mult > 0, "style_lr_mult", "1 = the generator's rate"),
+            (self.warmup_iters >= 0, "warmup_iters", "use 0 (no warm-up) or more"),
+            (self.warmup_lr > 0, "warmup_lr", "e.g. 1e-3"),
+            (1 <= self.windows_per_step <= 16, "windows_per_step", "use 1 to 16"),
+            (self.monitor_every >= 0, "monitor_every", "use 0 (never) or more"),
         )
         for ok, name, hint in checks:
             if not ok:
                 raise DetailizeError(f"bad training setting {name} = {getattr(self, name)!r}", field=name, hint=hint)
-        from model.ablations import ABLATIONS
-
+        if self.recipe not in RECIPES:
+            raise DetailizeError(f"unknown recipe {self.recipe!r}", field="recipe",
+                                 hint="use one of: " + ", ".join(RECIPES))
         if self.ablation not in ABLATIONS:
             raise DetailizeError(f"unknown ablation {self.ablation!r}", field="ablation",
                                  hint="use one of: " + ", ".join(ABLATIONS))
@@ -161,97 +203,11 @@ class TrainResult:
     seconds_per_iteration: float
 
 
-# ----------------------------------------------------------------------------- fine-level windows
-
-
-def surface_window(coarse_occ: np.ndarray, cells: int, rng: np.random.Generator) -> Window:
-    """A ``cells``³ window of coarse cells (whole axis where the grid is smaller) around a random surface cell.
-
-    Surface cells are occupied cells with an empty 6-neighbour (all occupied cells if none).
-    """
-    from scipy.ndimage import binary_erosion
-
-    surface = coarse_occ & ~binary_erosion(coarse_occ, border_value=0)
-    cand = np.argwhere(surface if surface.any() else coarse_occ)
-    centre = cand[int(rng.integers(len(cand)))]
-    out = []
-    for c, n in zip(centre, coarse_occ.shape):
-        w = min(cells, n)
-        lo = int(np.clip(c - w // 2, 0, n - w))
-        out.append(slice(lo, lo + w))
-    return tuple(out)  # type: ignore[return-value]
-
-
-def check_window(cfg: ModelConfig, whole_levels: int, cells: int) -> None:
-    """Refuse a window too small for the windowed levels' discriminators."""
-    for j, d in zip(cfg.supervised_levels, cfg.discriminators):
-        if j >= whole_levels and d.output_size(cells * 2 ** (j + 1)) < 1:
-            raise DetailizeError(f"a window of {cells} coarse cells is too small for the level-{j} discriminator",
-                                 field="window_cells", hint="use a larger window_cells, or 0 for whole shapes")
-
-
-class SampleView:
-    """A sample as the losses see it: whole grid for levels ``< whole_levels``, the window for finer ones.
-
-    Gives per level the (1, 1, …) target tensor, the discriminator-output masks, the
-    adaptive-α map and the crop of the previous level, all on the same cells.
-    """
-
-    def __init__(self, sample: Sample, window: Window | None, whole_levels: int, device) -> None:
-        self.sample, self.window, self.device = sample, window, device
-        self.whole_levels = whole_levels if window is not None else 10**6
-        self._joints = None
-
-    def _cells(self, j: int) -> Window | None:
-        return self.window if j >= self.whole_levels else None
-
-    def _crop(self, arr: np.ndarray, j: int, factor: int) -> np.ndarray:
-        w = self._cells(j)
-        return arr if w is None else arr[tuple(slice(s.start * factor, s.stop * factor) for s in w)]
-
-    def target(self, j: int):
-        import torch
-
-        t = self.sample.target(j, self._cells(j))
-        return torch.from_numpy(np.ascontiguousarray(t))[None, None].to(self.device)
-
-    def styled(self, j: int) -> StyledCoarse:
-        s = self.sample
-        return StyledCoarse(self._crop(s.coarse_occupancy, j, 1), self._crop(s.coarse_labels, j, 1).astype(np.int64),
-                            s.assignment)
-
-    def masks(self, j: int, d_shape: tuple[int, ...], cfg: ModelConfig) -> DOutputMasks:
-        m = self.styled(j).masks(j, cfg.discriminator(j), d_shape, cfg.n_styles)
-        return DOutputMasks(m.style[None], m.global_[None])
-
-    def alpha(self, j: int, d_shape: tuple[int, ...], cfg: ModelConfig):
-        from model.masks import align_to_d_output, alpha_map, joint_mask
-
-        lc = cfg.losses
-        if self._joints is None:
-            self._joints = joint_mask(self.sample.fine_labels, cfg.factor, lc.joint_radius)
-        a = alpha_map(self._crop(self._joints, j, 1), lc.alpha_joint, lc.alpha_other)
-        return align_to_d_output(a[None], j, cfg.discriminator(j), d_shape)[None]
-
-    def crop_prev(self, prev, j: int, j_prev: int | None = None):
-        """Level ``j_prev``'s output (default j−1; −1 = the coarse input) cut to the cells level j covers."""
-        j_prev = j - 1 if j_prev is None else j_prev
-        if self._cells(j) is None or self._cells(j_prev) is not None:
-            return prev
-        r = 2 ** (j_prev + 1)  # prev is at 2^(j_prev+1) × coarse
-        return prev[:, :, *(slice(s.start * r, s.stop * r) for s in self.window)]
-
-
 class Trainer:
     """Networks, optimizers and the three steps of an iteration, on one device."""
 
     def __init__(self, exemplars: Sequence[Exemplar], cfg: ModelConfig, tcfg: TrainConfig,
                  part_aliases: dict[str, str] | None = None) -> None:
-        import torch
-
-        from model.infer import cpu_threads, resolve_device
-        from model.networks import Generator, build_discriminators
-
         self.exemplars, self.cfg, self.tcfg, self.aug = list(exemplars), cfg, tcfg, tcfg.augment()
         self.part_aliases = dict(part_aliases or {})
         self.style_set: dict | None = None  # the set's provenance record, stored in checkpoints
@@ -264,7 +220,13 @@ class Trainer:
         if self.device.type == "cpu":  # measured 1.3–2× faster convolutions on CPU
             self.gen.to(memory_format=torch.channels_last_3d)
             self.discs.to(memory_format=torch.channels_last_3d)
-        self.opt_g = torch.optim.Adam(self.gen.parameters(), lr=tcfg.lr, betas=tcfg.betas)
+        if tcfg.style_lr_mult == 1.0:
+            groups: Any = self.gen.parameters()
+        else:  # the codes in their own group; "lr_mult" is kept in the group (and its saved state)
+            rest = [p for n, p in self.gen.named_parameters() if n != "style_codes"]
+            groups = [{"params": rest, "lr_mult": 1.0},
+                      {"params": [self.gen.style_codes], "lr_mult": tcfg.style_lr_mult}]
+        self.opt_g = torch.optim.Adam(groups, lr=tcfg.lr, betas=tcfg.betas)
         self.opt_d = torch.optim.Adam(self.discs.parameters(), lr=tcfg.lr, betas=tcfg.betas)
         self.whole_levels = min(max(tcfg.whole_levels, 0), cfg.n_levels) if tcfg.window_cells else cfg.n_levels
         check_window(cfg, self.whole_levels, tcfg.window_cells)
@@ -274,38 +236,59 @@ class Trainer:
     # ------------------------------------------------------------------ tensors
 
     def _inputs(self, s: Sample):
-        import torch
-
         occ = torch.from_numpy(s.coarse_occupancy)[None]
         parts = torch.from_numpy(s.coarse_labels.astype(np.int64))[None]
         styles = torch.from_numpy(s.style_index())[None]
         return self.gen.make_inputs(occ, parts, styles)
 
-    def _view(self, s: Sample, it: int, stream: int) -> "SampleView":
-        window = None
-        if self.tcfg.window_cells and self.whole_levels < self.cfg.n_levels:
-            window = surface_window(s.coarse_occupancy, self.tcfg.window_cells, rng_for(self.tcfg.seed, it, stream))
-        return SampleView(s, window, self.whole_levels, self.device)
+    def _views(self, s: Sample, it: int, stream: int, n: int = 1) -> list[SampleView]:
+        """``n`` views of one sample, each with its own random surface window (one view, no window, when dense)."""
+        if not (self.tcfg.window_cells and self.whole_levels < self.cfg.n_levels):
+            return [SampleView(s, None, self.whole_levels, self.device)]
+        rng = rng_for(self.tcfg.seed, it, stream)
+        return [SampleView(s, surface_window(s.coarse_occupancy, self.tcfg.window_cells, rng), self.whole_levels,
+                           self.device) for _ in range(n)]
 
-    def _forward(self, v: "SampleView"):
-        return window_forward(self.gen, *self._inputs(v.sample), v.whole_levels, v.window)
+    def _forward(self, views: Sequence[SampleView]) -> list[list[torch.Tensor]]:
+        """Per view, the generator's supervised outputs (one trunk forward for all views of the sample)."""
+        inputs = self._inputs(views[0].sample)
+        if views[0].window is None:
+            return [self.gen(*inputs)]
+        return windows_forward(self.gen, *inputs, self.whole_levels, [v.window for v in views])
+
+    def learning_rate(self, it: int) -> float:
+        """The generator's learning rate at iteration ``it``: the warm-up's half-cosine decay, then ``lr``."""
+        t = self.tcfg
+        if it >= t.warmup_iters:
+            return t.lr
+        return t.lr + (t.warmup_lr - t.lr) * 0.5 * (1.0 + math.cos(math.pi * it / t.warmup_iters))
+
+    def _set_lr(self, it: int) -> float:
+        lr = self.learning_rate(it)
+        for group in self.opt_g.param_groups:
+            group["lr"] = lr * group.get("lr_mult", 1.0)
+        return lr
 
     # ------------------------------------------------------------------ steps
 
-    def reconstruction_step(self, it: int, r: int) -> tuple[dict[str, float], "SampleView"]:
-        """One G step reproducing a style shape in its own style; returns losses and the sample's view."""
-        from torch.nn import functional as F
+    def reconstruction_step(self, it: int, r: int) -> tuple[dict[str, float], SampleView]:
+        """One G step reproducing a style shape in its own style; returns losses and the sample's first view.
 
+        With ``windows_per_step`` K > 1 the fine levels run on K windows of the sample
+        after one trunk forward, and the loss is the mean of the K windows' losses (the
+        whole levels' terms count once).
+        """
         style = int(rng_for(self.tcfg.seed, it, 100 + r).integers(self.cfg.n_styles))
         s = style_sample(self.exemplars, style, self.cfg, self.aug, self.tcfg.seed, it * 8 + r)
-        v = self._view(s, it, 200 + r)
-        outs = self._forward(v)
-        levels = self.cfg.supervised_levels
-        loss = self.cfg.losses.beta_recon * sum(F.mse_loss(o, v.target(j)) for j, o in zip(levels, outs))
+        views = self._views(s, it, 200 + r, self.tcfg.windows_per_step)
+        levels, beta = self.cfg.supervised_levels, self.cfg.losses.beta_recon
+        per_view = [reconstruction_loss(outs, [v.target(j) for j in levels], beta)["total"]
+                    for v, outs in zip(views, self._forward(views))]
+        loss = per_view[0] if len(per_view) == 1 else sum(per_view) / len(per_view)
         self.opt_g.zero_grad(set_to_none=True)
         loss.backward()
         self.opt_g.step()
-        return {"recon": loss.item()}, v
+        return {"recon": loss.item()}, views[0]
 
     def adversarial_steps(self, it: int, real: "SampleView") -> dict[str, float]:
         """The G adversarial step, then the D step, on one augmented content.
@@ -318,55 +301,52 @@ class Trainer:
         input for the first, pooled by the resolution ratio: 2, or 16 without the
         pyramid), cropped to the window where level j is windowed.
         """
-        from model.losses import discriminator_loss, generator_gan_loss, structure_pair
-
-        lc, cfg = self.cfg.losses, self.cfg
+        cfg = self.cfg
         content = augmented_sample(self.exemplars, cfg, self.aug, self.tcfg.seed, it)
-        v = self._view(content, it, 300)
+        (v,) = self._views(content, it, 300)
         occ = self._inputs(content)[0]
 
         # G: the discriminators judge but do not learn here.
         self.discs.requires_grad_(False)
-        outs = self._forward(v)
+        (outs,) = self._forward([v])
         levels = cfg.supervised_levels
-        gan, down, up = [], [], []
-        for k, (j, d, o) in enumerate(zip(levels, self.discs, outs)):
-            df = d(o)
-            m = v.masks(j, tuple(df.shape[2:]), cfg)
-            alpha = v.alpha(j, tuple(df.shape[2:]), cfg) if self.tcfg.adaptive_alpha else lc.alpha_other
-            gan.append(generator_gan_loss(df, m.style, m.global_, alpha)["total"])
-            j_prev = levels[k - 1] if k else -1
-            prev = v.crop_prev(outs[k - 1] if k else occ, j, j_prev)
-            d_j, u_j = structure_pair(o, prev, lc, factor=2 ** (j - j_prev))
-            down.append(d_j)
-            up.append(u_j)
-        g_gan, g_down, g_up = sum(gan), sum(down), sum(up)
-        g_total = g_gan + lc.gamma_down * g_down + lc.gamma_up * g_up
+        d_fake = [d(o) for d, o in zip(self.discs, outs)]
+        fake_masks = [v.masks(j, tuple(df.shape[2:]), cfg) for j, df in zip(levels, d_fake)]
+        alphas = ([v.alpha(j, tuple(df.shape[2:]), cfg) for j, df in zip(levels, d_fake)]
+                  if self.tcfg.adaptive_alpha else None)
+        prevs = [v.crop_prev(outs[k - 1] if k else occ, j, levels[k - 1] if k else -1) for k, j in enumerate(levels)]
+        g = generator_adversarial_loss(d_fake, outs, prevs, fake_masks, alphas, cfg)
         self.opt_g.zero_grad(set_to_none=True)
-        g_total.backward()
+        g["total"].backward()
         self.opt_g.step()
         self.discs.requires_grad_(True)
 
         # D: real = the smoothed style shape of the last reconstruction step; fake = detached outputs.
-        d_real_sum = d_fake_sum = 0.0
-        for j, d, o in zip(levels, self.discs, outs):
-            dr, df = d(real.target(j)), d(o.detach())
-            terms = discriminator_loss(dr, df, real.masks(j, tuple(dr.shape[2:]), cfg),
-                                       v.masks(j, tuple(df.shape[2:]), cfg))
-            d_real_sum = d_real_sum + terms["real"]
-            d_fake_sum = d_fake_sum + terms["fake"]
-        d_total = d_real_sum + d_fake_sum
+        d_real = [d(real.target(j)) for j, d in zip(levels, self.discs)]
+        d_fake = [d(o.detach()) for d, o in zip(self.discs, outs)]
+        real_masks = [real.masks(j, tuple(dr.shape[2:]), cfg) for j, dr in zip(levels, d_real)]
+        dl = discriminator_loss_levels(d_real, d_fake, real_masks, fake_masks, cfg)
         self.opt_d.zero_grad(set_to_none=True)
-        d_total.backward()
+        dl["total"].backward()
         self.opt_d.step()
         return {
-            "g_total": g_total.item(), "gan": g_gan.item(), "down": g_down.item(), "up": g_up.item(),
-            "d_total": d_total.item(), "d_real": d_real_sum.item(), "d_fake": d_fake_sum.item(),
+            "g_total": g["total"].item(), "gan": g["gan"].item(), "down": g["down"].item(), "up": g["up"].item(),
+            "d_total": dl["total"].item(), "d_real": dl["real"].item(), "d_fake": dl["fake"].item(),
         }
 
     def iteration(self) -> dict[str, float]:
-        """One full iteration at ``self.step``; advances the step."""
+        """One full iteration at ``self.step``; advances the step.
+
+        Warm-up iterations (``it < warmup_iters``) are one reconstruction step; the others
+        are ``recon_steps_early`` or 1 reconstruction steps, the adversarial G step and the
+        D step.
+        """
         it = self.step
+        lr = self._set_lr(it)
+        if it < self.tcfg.warmup_iters:
+            losses, _ = self.reconstruction_step(it, 0)
+            self.step += 1
+            return {"recon": losses["recon"], "lr": lr}
         n_rec = self.tcfg.recon_steps_early if it < self.tcfg.recon_early_iters else 1
         recon, real = [], None
         for r in range(max(1, n_rec)):
@@ -380,13 +360,12 @@ class Trainer:
     # ------------------------------------------------------------------ checkpoints
 
     def _meta(self) -> dict[str, Any]:
-        import torch
-
         return {
             "step": self.step,
             "seed": self.tcfg.seed,
             "command": self.tcfg.command,
             "ablation": self.tcfg.ablation,
+            "recipe": self.tcfg.recipe,
             "wall_time_s": round(self.wall_s, 3),
             "machine": f"{platform.machine()} {os.cpu_count()} cpus, {self.device.type}"
                        + (f" ({torch.cuda.get_device_name(self.device)})" if self.device.type == "cuda" else ""),
@@ -397,8 +376,6 @@ class Trainer:
         }
 
     def checkpoint(self, full: bool = True) -> Checkpoint:
-        import torch
-
         ex = self.exemplars
         vocab = ex[0].part_names
         return Checkpoint(
@@ -417,10 +394,9 @@ class Trainer:
 
     def restore(self, path: Path) -> None:
         """Continue from a full checkpoint written by this trainer's configuration."""
-        import torch
-
         ck = load_checkpoint(path, training_state=True)
         same_ablation = ck.training.get("ablation", "full") == self.tcfg.ablation  # absent: written before the key
+        same_ablation &= ck.training.get("recipe", "reference") == self.tcfg.recipe
         if ck.config != self.cfg or ck.style_names != tuple(e.name for e in self.exemplars) or not same_ablation:
             raise DetailizeError("the checkpoint to resume was trained with another config or exemplar set",
                                  file=path, hint="use a new --out folder, or the same settings as that run")
@@ -448,8 +424,6 @@ class _Previews:
         self.trainer, self.folder, self.samples = trainer, folder, None
 
     def write(self, step: int) -> Path:
-        from model.previews import preview_samples, write_preview
-
         t = self.trainer
         if self.samples is None:
             self.samples = preview_samples(t.exemplars, t.cfg, t.aug, n=4)
@@ -474,6 +448,7 @@ def train(
     part_aliases: dict[str, str] | None = None,
     progress: Callable[[int, int, dict[str, float]], None] | None = None,
     style_set: dict | None = None,
+    stop_after_s: float | None = None,
 ) -> TrainResult:
     """Train (or continue training) up to ``tcfg.steps`` iterations; see the module docstring.
 
@@ -483,6 +458,10 @@ def train(
         progress: called after every iteration with (step, total, losses) — the CLI's progress bar.
         style_set: the set's provenance (``stylesets.provenance.StyleSetRecord.to_json()``: name, digest,
             each exemplar's licence), recorded in the checkpoints so built assets can credit exemplars.
+        stop_after_s: stop after the first iteration that ends this many seconds after the
+            start (a time-boxed session, e.g. ``scripts/train_resume.py`` on a lent GPU); the
+            state is saved to ``last.pt`` and ``model.pt`` as at the end, and the same call
+            continues later.
     Raises:
         DetailizeError: inconsistent set/config, unusable resume checkpoint, unwritable folder,
             or a loss that became NaN/inf (training diverged; the last checkpoint is kept).
@@ -499,6 +478,8 @@ def train(
     losses: dict[str, float] = {}
     times = []
     previews = _Previews(trainer, out / "previews") if tcfg.preview_every else None
+    monitor = Monitor(trainer.exemplars, cfg, trainer.aug)
+    start = time.perf_counter()
     with open(log_path, "a", encoding="utf-8") as log:
         while trainer.step < tcfg.steps:
             t0 = time.perf_counter()
@@ -509,15 +490,20 @@ def train(
             if not all(np.isfinite(v) for v in losses.values()):
                 raise DetailizeError(f"training diverged at step {trainer.step}: {losses}", file=log_path,
                                      hint="resume from last.pt with a lower learning rate")
-            log.write(json.dumps({"step": trainer.step, "seconds": round(dt, 4),
-                                  **{k: round(v, 6) for k, v in losses.items()}}) + "\n")
+            row = {"step": trainer.step, "seconds": round(dt, 4), **{k: round(v, 6) for k, v in losses.items()}}
+            if tcfg.monitor_every and (trainer.step % tcfg.monitor_every == 0 or trainer.step == tcfg.steps):
+                row["monitor"] = monitor.figures(trainer.gen)
+            log.write(json.dumps(row) + "\n")
             log.flush()
-            if trainer.step % tcfg.checkpoint_every == 0 or trainer.step == tcfg.steps:
+            out_of_time = stop_after_s is not None and time.perf_counter() - start >= stop_after_s
+            if trainer.step % tcfg.checkpoint_every == 0 or trainer.step == tcfg.steps or out_of_time:
                 save_checkpoint(last, trainer.checkpoint(full=True))
             if previews and (trainer.step % tcfg.preview_every == 0 or trainer.step == tcfg.steps):
                 previews.write(trainer.step)
             if progress is not None:
                 progress(trainer.step, tcfg.steps, losses)
+            if out_of_time:
+                break
     save_checkpoint(model_path, trainer.checkpoint(full=False))
     return TrainResult(trainer.step, last, model_path, log_path, losses,
                        float(np.mean(times)) if times else 0.0)

@@ -19,14 +19,18 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
+from model.config import ModelConfig, Upsampler
+
+if TYPE_CHECKING:  # torch stays out of this module's import: model/infer.py must load without it
     from torch import Tensor
+
+    from model.networks import Generator
 
 #: A window of coarse cells (x, y, z slices).
 Window = tuple[slice, slice, slice]
 
 
-def halo_cells(cfg, whole_levels: int) -> int:
+def halo_cells(cfg: ModelConfig, whole_levels: int) -> int:
     """Coarse cells of context around a window that make the windowed levels exact.
 
     Cutting the features at level ``whole_levels``'s input treats everything outside
@@ -36,8 +40,6 @@ def halo_cells(cfg, whole_levels: int) -> int:
     (``cfg.supervised_levels``), in coarse cells (1 for the lean layout cut at level 2,
     3 when every level is windowed).
     """
-    from model.config import Upsampler
-
     c, need = 0, 0
     for j in range(whole_levels, cfg.n_levels):
         lv = cfg.levels[j]
@@ -47,64 +49,47 @@ def halo_cells(cfg, whole_levels: int) -> int:
     return need
 
 
-def _trunk(gen, occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor", whole_levels: int, keep: bool):
-    """Backbone + levels ``< whole_levels`` on the whole grid.
+def _trunk(gen: "Generator", occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor", whole_levels: int,
+           keep: bool) -> "tuple[Tensor, Tensor, list[Tensor]]":
+    """Backbone + levels ``< whole_levels`` on the whole grid (``Generator.trunk`` and ``run_levels``).
 
     Returns (features entering level ``whole_levels`` (1, C, 2^w·X, …), conditioning
     (1, K, X, Y, Z), outputs of the supervised whole levels if ``keep`` else []).
     """
-    import torch
-
-    from model.networks import _memory_format, _upsample, leaky_clamp
-
-    cfg = gen.cfg
-    gen._check(occupancy, part_onehot, z)
-    fmt = _memory_format(gen)
-    cond = z if not cfg.use_part_labels else torch.cat([part_onehot, z], 1)
-    cond = cond.contiguous(memory_format=fmt)
-    x = torch.cat([occupancy.to(z.dtype), cond], 1).contiguous(memory_format=fmt)
-    zc = z.contiguous(memory_format=fmt)
-    for i, conv in enumerate(gen.backbone):
-        if i:
-            x = torch.cat([x, zc], 1)
-        x = torch.nn.functional.leaky_relu(conv(x), cfg.leaky_slope, inplace=True)
-    outs = []
-    for j in range(whole_levels):
-        x, logit = gen.levels[j](torch.cat([x, _upsample(cond, 2**j)], 1))
-        if keep and logit is not None:
-            outs.append(leaky_clamp(logit, cfg.clamp_slope))
-    return x, cond, outs
+    x, cond = gen.trunk(occupancy, part_onehot, z)
+    x, outs = gen.run_levels(x, cond, 0, whole_levels, all_heads=keep, occupancy=occupancy)
+    return x, cond, [o for _, o in outs]
 
 
-def _fine_on_window(gen, x: "Tensor", cond: "Tensor", whole_levels: int, window: Window, halo: int,
-                    keep: bool) -> list:
+def fine_on_window(gen: "Generator", x: "Tensor", cond: "Tensor", occupancy: "Tensor", whole_levels: int,
+                   window: Window, halo: int, keep: bool) -> "list[Tensor]":
     """Levels ``≥ whole_levels`` on ``window`` (+ halo, clamped to the grid); outputs cropped to the window.
 
-    ``keep`` False: only the last level's output is returned (in a one-element list).
+    Args:
+        x, cond: the whole grid's features entering level ``whole_levels`` and its
+            conditioning (``_trunk``); several windows may share them (one trunk forward).
+        occupancy: (1, 1, X, Y, Z) the whole coarse occupancy (``cfg.output_mask``).
+        halo: ``halo_cells(gen.cfg, whole_levels)``.
+        keep: every windowed supervised level's output; False: only the last level's
+            (a one-element list).
+    Returns:
+        per output level j, (1, 1, 2^(j+1)·w, …) for the window's w cells per axis.
     """
-    import torch
-
-    from model.networks import _memory_format, _upsample, leaky_clamp
-
-    cfg = gen.cfg
-    fmt = _memory_format(gen)
+    fmt = gen.memory_format
     shape = cond.shape[2:]
     lo = [max(0, w.start - halo) for w in window]
     hi = [min(n, w.stop + halo) for w, n in zip(window, shape)]
     r = 2**whole_levels
     x = x[:, :, lo[0] * r : hi[0] * r, lo[1] * r : hi[1] * r, lo[2] * r : hi[2] * r].contiguous(memory_format=fmt)
     cond = cond[:, :, lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]].contiguous(memory_format=fmt)
-    outs = []
-    for j in range(whole_levels, cfg.n_levels):
-        x, logit = gen.levels[j](torch.cat([x, _upsample(cond, 2**j)], 1))
-        if logit is not None and (keep or j == cfg.n_levels - 1):
-            r = 2 ** (j + 1)
-            out = leaky_clamp(logit, cfg.clamp_slope)
-            outs.append(out[:, :, *(slice((w.start - a) * r, (w.stop - a) * r) for w, a in zip(window, lo))])
-    return outs
+    occ = occupancy[:, :, lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
+    _, outs = gen.run_levels(x, cond, whole_levels, all_heads=keep, occupancy=occ)
+    return [out[:, :, *(slice((w.start - a) * 2 ** (j + 1), (w.stop - a) * 2 ** (j + 1)) for w, a in zip(window, lo))]
+            for j, out in outs]
 
 
-def window_forward(gen, occupancy, part_onehot, z, whole_levels: int, window: Window | None) -> list:
+def window_forward(gen: "Generator", occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor",
+                   whole_levels: int, window: Window | None) -> "list[Tensor]":
     """The generator's forward with levels ``≥ whole_levels`` evaluated only on a coarse window.
 
     Levels ``< whole_levels`` see the whole grid. At the first windowed level the
@@ -119,11 +104,23 @@ def window_forward(gen, occupancy, part_onehot, z, whole_levels: int, window: Wi
     """
     if window is None:
         return gen(occupancy, part_onehot, z)
+    return windows_forward(gen, occupancy, part_onehot, z, whole_levels, [window])[0]
+
+
+def windows_forward(gen: "Generator", occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor",
+                    whole_levels: int, windows: "list[Window]") -> "list[list[Tensor]]":
+    """``window_forward`` for several windows of one shape sharing one trunk forward.
+
+    The backbone and levels ``< whole_levels`` run once on the whole grid; the finer
+    levels run once per window. Returns, per window, the list ``window_forward`` gives
+    (the whole levels' output tensors are the same objects in every list).
+    """
     x, cond, outs = _trunk(gen, occupancy, part_onehot, z, whole_levels, keep=True)
-    return outs + _fine_on_window(gen, x, cond, whole_levels, window, halo_cells(gen.cfg, whole_levels), keep=True)
+    halo = halo_cells(gen.cfg, whole_levels)
+    return [outs + fine_on_window(gen, x, cond, occupancy, whole_levels, w, halo, keep=True) for w in windows]
 
 
-def blockwise_forward(gen, occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor", *,
+def blockwise_forward(gen: "Generator", occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor", *,
                       block_cells: int = 8, whole_levels: int = 2, skip_empty: bool = True) -> "Tensor":
     """The last level's output (1, 1, f·X, f·Y, f·Z), its fine levels run block by block.
 
@@ -153,6 +150,6 @@ def blockwise_forward(gen, occupancy: "Tensor", part_onehot: "Tensor | None", z:
                     near = tuple(slice(max(0, w.start - halo), w.stop + halo) for w in window)
                     if not bool(occ[near].any()):
                         continue
-                block = _fine_on_window(gen, x, cond, whole_levels, window, halo, keep=False)[0]
+                block = fine_on_window(gen, x, cond, occupancy, whole_levels, window, halo, keep=False)[0]
                 out[:, :, *(slice(w.start * f, w.stop * f) for w in window)] = block
     return out

@@ -78,3 +78,14 @@ def test_train_ablation_option_trains_the_named_row_and_records_it(tmp_path):
     assert ck.config.pyramid and ck.training["ablation"] == "full"
     result = _train(set_path, tmp_path / "bad", 1, "--ablation", "no_such_row")
     assert result.exit_code == 2 and "no_such_row" in result.output and "decor_gan" in result.output
+
+
+def test_train_recipe_option_records_the_recipe_and_a_resume_must_name_it(tmp_path):
+    set_path, out = _tiny_set(tmp_path), tmp_path / "warm"
+    result = _train(set_path, out, 1, "--recipe", "warmup", "--preview-every", "0")
+    assert result.exit_code == 0, result.output
+    ck = load_checkpoint(out / "last.pt")
+    assert ck.training["recipe"] == "warmup" and ck.config.output_mask and ck.config.min_cell_fill == 0.5
+    assert ck.training["train_config"]["warmup_iters"] > 1 and ck.config.style_init_std > 0
+    result = _train(set_path, out, 2, "--preview-every", "0")  # the reference recipe: another run
+    assert result.exit_code == 2 and "another config" in result.output

@@ -18,6 +18,9 @@ from model.losses import (
     reconstruction_loss,
     structure_losses,
     up_loss,
+    whole_shape_alphas,
+    whole_shape_masks,
+    whole_shape_prevs,
 )
 from model.masks import DOutputMasks, StyledCoarse, align_to_d_output
 from core.errors import DetailizeError
@@ -121,7 +124,7 @@ def test_structure_losses_cover_every_level_including_the_input():
     cfg = ModelConfig.lean(1, 1)
     x = torch.ones(1, 1, 1, 1, 1)
     outs = [torch.ones(1, 1, 2, 2, 2), torch.ones(1, 1, 4, 4, 4) * 0.5]
-    st = structure_losses(outs, x, dataclasses.replace(cfg.losses, down_loss=DownLoss.PAPER_MSE))
+    st = structure_losses(outs, whole_shape_prevs(outs, x), dataclasses.replace(cfg.losses, down_loss=DownLoss.PAPER_MSE))
     assert st["down0"].item() == 0 and st["up0"].item() == 0
     assert st["down1"].item() == pytest.approx(0.25) and st["up1"].item() == pytest.approx(0.25)
     assert st["total"].item() == pytest.approx(10 * 0.25 + 10 * 0.25)
@@ -155,7 +158,8 @@ def test_discriminator_fake_masks_use_the_true_assignment_at_every_level():
     values = [0.1, 0.2, 0.3, 0.4]  # style heads 0, 1, 2 and global
     d_fake = _d_outputs(cfg, occ.shape, values)
     d_real = _d_outputs(cfg, occ.shape, [1.0, 1.0, 1.0, 1.0])
-    loss = discriminator_loss_levels(d_real, d_fake, real, fake, cfg)
+    loss = discriminator_loss_levels(d_real, d_fake, whole_shape_masks(d_real, real, cfg),
+                                     whole_shape_masks(d_fake, fake, cfg), cfg)
     for j, spec in enumerate(cfg.discriminators):
         shape = tuple(d_fake[j].shape[2:])
         n0 = align_to_d_output((labels == 0) & occ, j, spec, shape).sum().item()
@@ -177,13 +181,16 @@ def test_generator_adversarial_loss_combines_gan_and_structure_terms():
     coarse = torch.ones(1, 1, 4, 4, 4)
     outputs = [torch.ones(1, 1, *(n * 2 ** (j + 1) for n in occ.shape)) for j in range(4)]
     perfect = _d_outputs(cfg, occ.shape, [1.0, 1.0, 1.0, 1.0])
-    loss = generator_adversarial_loss(perfect, outputs, coarse, fake, cfg)
+    prevs = whole_shape_prevs(outputs, coarse)
+    loss = generator_adversarial_loss(perfect, outputs, prevs, whole_shape_masks(perfect, fake, cfg), None, cfg)
     assert loss["gan"].item() == 0 and loss["down"].item() == 0 and loss["total"].item() == 0
     half = _d_outputs(cfg, occ.shape, [0.5, 0.5, 0.5, 0.5])
-    uniform = generator_adversarial_loss(half, outputs, coarse, fake, cfg)
+    half_masks = whole_shape_masks(half, fake, cfg)
+    uniform = generator_adversarial_loss(half, outputs, prevs, half_masks, None, cfg)
     assert uniform["gan0"].item() == pytest.approx(0.5 * 0.25 + 0.25)  # α_other = 0.5 everywhere
     joint_everywhere = torch.full((4, 4, 4), 0.1)
-    adaptive = generator_adversarial_loss(half, outputs, coarse, [fake], cfg, alpha_coarse=[joint_everywhere])
+    adaptive = generator_adversarial_loss(half, outputs, prevs, half_masks,
+                                          whole_shape_alphas(half, [joint_everywhere], cfg), cfg)
     assert adaptive["gan3"].item() == pytest.approx(0.1 * 0.25 + 0.25)
 
 
@@ -206,13 +213,16 @@ def test_one_adversarial_step_end_to_end_on_a_tiny_lean_model():
     outputs = gen(*inputs)
     d_fake = [d(o) for d, o in zip(discs, outputs)]
     alpha = alpha_map(joint_mask(fine, 16, 2))
-    loss = generator_adversarial_loss(d_fake, outputs, inputs[0], fake, cfg, alpha_coarse=alpha)
+    loss = generator_adversarial_loss(d_fake, outputs, whole_shape_prevs(outputs, inputs[0]),
+                                      whole_shape_masks(d_fake, fake, cfg), whole_shape_alphas(d_fake, alpha, cfg), cfg)
     assert torch.isfinite(loss["total"]) and loss["gan"] > 0
     loss["total"].backward()
     assert gen.style_codes.grad[:, 0].abs().sum() > 0 and gen.style_codes.grad[:, 2].abs().sum() > 0
     assert gen.style_codes.grad[:, 1].abs().sum() == 0
     d_real = [d(o.detach()) for d, o in zip(discs, outputs)]  # stand-in real shape: the same grids
-    d_loss = discriminator_loss_levels(d_real, [d(o.detach()) for d, o in zip(discs, outputs)],
-                                       StyledCoarse.single_style(fake.occupancy, 1), fake, cfg)
+    d_fake_detached = [d(o.detach()) for d, o in zip(discs, outputs)]
+    d_loss = discriminator_loss_levels(d_real, d_fake_detached,
+                                       whole_shape_masks(d_real, StyledCoarse.single_style(fake.occupancy, 1), cfg),
+                                       whole_shape_masks(d_fake_detached, fake, cfg), cfg)
     d_loss["total"].backward()
     assert all(p.grad is not None for p in discs.parameters())

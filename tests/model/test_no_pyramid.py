@@ -14,7 +14,7 @@ from model.ablations import ablation_configs
 from model.checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from model.config import ModelConfig
 from model.infer import DecollageDetailizer
-from model.losses import down_loss, structure_losses, up_loss
+from model.losses import down_loss, structure_losses, up_loss, whole_shape_prevs
 from model.networks import Generator, build_discriminators, count_params
 from model.train import TrainConfig, Trainer, train
 from model.windows import blockwise_forward, window_forward
@@ -95,7 +95,7 @@ def test_structure_losses_compare_the_x16_output_with_the_coarse_input():
     coarse[..., 0, :, :] = 1
     exact = torch.nn.functional.interpolate(coarse, scale_factor=16, mode="nearest")
     assert up_loss(exact, coarse, factor=16) == 0 and down_loss(exact, coarse, factor=16) == 0
-    st = structure_losses([exact], coarse, _tiny(pyramid=False).losses)
+    st = structure_losses([exact], whole_shape_prevs([exact], coarse), _tiny(pyramid=False).losses)
     assert st["down"] == 0 and st["up"] == 0
     empty = torch.zeros_like(exact)
     assert up_loss(empty, coarse, factor=16) == pytest.approx(0.5)

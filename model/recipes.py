@@ -1,0 +1,58 @@
+"""Named training recipes: the settings of ``ModelConfig`` / ``TrainConfig`` a run is trained with.
+
+``recipe_configs(name, cfg, tcfg)`` returns the pair to train with, built from the
+layout's ``ModelConfig`` and the run's ``TrainConfig`` (like ``model/ablations.py``'s
+rows, which apply on top). The name is recorded in the checkpoints' training meta and
+a resume must name the same one.
+
+- ``reference``: the published code's recipe, which trained the shipped
+  ``model/weights/things.pt`` (``model/weights/things.md``): style codes start at zero
+  and learn at 1e-4 like everything else, 4 reconstruction steps + 1 adversarial step
+  per iteration for the first 5000 iterations, L_up at weight 10 at every level, the
+  output free to grow outside the coarse cells.
+- ``warmup``: what the A/Bs of ``model/weights/warmup.md`` kept. Style codes that
+  can move (N(0, 1) start, 10× the generator's learning rate in their own Adam
+  group); a reconstruction-only warm-up of ``WARMUP_ITERS`` iterations at a learning
+  rate decayed from 1e-3 to 1e-4 (half cosine), 4 fine windows per step sharing one
+  trunk forward; nothing generated outside the occupied coarse cells
+  (``output_mask``); then one reconstruction + one adversarial step per iteration with
+  L_up lowered to 0.1·γ_up at the two finest levels (kept at 32³/64³ for structure;
+  L_down unchanged); at inference every occupied coarse cell stays at least half
+  occupied (``min_cell_fill`` 0.5), so thin strokes and spires survive.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING, Callable
+
+from model.config import ModelConfig
+
+if TYPE_CHECKING:  # the names are read by the CLI at start-up: keep this module light
+    from model.train import TrainConfig
+
+#: Reconstruction-only iterations at the start of the ``warmup`` recipe.
+WARMUP_ITERS = 3000
+
+
+def _warmup(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    fine_up = tuple(0.1 if j >= m.n_levels - 2 else 1.0 for j in m.supervised_levels)
+    m = dataclasses.replace(m, style_init_std=1.0, output_mask=True, min_cell_fill=0.5,
+                            losses=dataclasses.replace(m.losses, up_level_weights=fine_up))
+    t = dataclasses.replace(t, style_lr_mult=10.0, warmup_iters=WARMUP_ITERS, warmup_lr=1e-3, windows_per_step=4,
+                            recon_early_iters=0, monitor_every=t.monitor_every or 100)
+    return m, t
+
+
+#: name → (description, change). The change takes and returns (ModelConfig, TrainConfig).
+RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelConfig, TrainConfig]]]] = {
+    "reference": ("the published code's recipe (the shipped things.pt)", lambda m, t: (m, t)),
+    "warmup": ("moving style codes, reconstruction warm-up, output mask, lower fine L_up, min cell fill", _warmup),
+}
+
+
+def recipe_configs(name: str, cfg: ModelConfig, tcfg: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    """The (ModelConfig, TrainConfig) of recipe ``name``; KeyError if unknown."""
+    if name not in RECIPES:
+        raise KeyError(f"unknown recipe {name!r}; known: {', '.join(RECIPES)}")
+    return RECIPES[name][1](cfg, tcfg)

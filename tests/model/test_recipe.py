@@ -1,0 +1,146 @@
+"""The training-recipe switches: style-code init and learning rate, the warm-up, several windows per step,
+the output mask, per-level L_up weights, the minimum-fill projection and the monitor."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from model.checkpoint import load_checkpoint
+from model.config import ModelConfig
+from model.infer import min_fill_projection
+from model.losses import structure_losses, whole_shape_prevs
+from model.monitor import Monitor, cell_fill
+from model.networks import Generator
+from model.train import Trainer, train
+from model.windows import window_forward, windows_forward
+from core.errors import DetailizeError
+from tests.model.test_train import EXS, _cfg, _log, _tcfg
+
+
+def _inputs(gen: Generator, shape, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    occ = torch.rand(1, *shape, generator=g) > 0.4
+    parts = torch.randint(0, gen.cfg.n_parts, (1, *shape), generator=g)
+    styles = torch.randint(0, gen.cfg.n_styles, (1, *shape), generator=g)
+    return gen.make_inputs(occ, parts, styles)
+
+
+def test_style_codes_random_init_is_seeded():
+    cfg = dataclasses.replace(_cfg(), style_init_std=1.0)
+    torch.manual_seed(0)
+    a = Generator(cfg).style_codes.detach().clone()
+    torch.manual_seed(0)
+    b = Generator(cfg).style_codes.detach()
+    assert torch.equal(a, b) and 0.5 < a.std() < 1.5
+    assert torch.count_nonzero(Generator(_cfg()).style_codes) == 0  # the default stays the reference's zeros
+
+
+def test_output_mask_zeroes_every_level_outside_the_occupied_cells():
+    cfg = dataclasses.replace(_cfg(), output_mask=True)
+    torch.manual_seed(0)
+    gen = Generator(cfg)
+    occ, parts, z = _inputs(gen, (3, 2, 4))
+    with torch.no_grad():
+        outs = gen(occ, parts, z)
+        for j, o in enumerate(outs):
+            mask = torch.nn.functional.interpolate(occ, scale_factor=2 ** (j + 1), mode="nearest")
+            assert torch.count_nonzero(o * (1 - mask)) == 0 and torch.count_nonzero(o * mask) > 0
+        # windows run the same mask
+        win = (slice(0, 2), slice(0, 2), slice(1, 3))
+        w = window_forward(gen, occ, parts, z, 2, win)[-1]
+        ref = outs[-1][:, :, 0:32, 0:32, 16:48]
+        torch.testing.assert_close(w, ref, rtol=1e-5, atol=1e-6)
+
+
+def test_several_windows_share_one_trunk_and_equal_single_windows():
+    torch.manual_seed(0)
+    gen = Generator(_cfg())
+    ins = _inputs(gen, (6, 4, 5))
+    wins = [(slice(0, 4), slice(0, 4), slice(0, 4)), (slice(2, 6), slice(0, 4), slice(1, 5))]
+    with torch.no_grad():
+        many = windows_forward(gen, *ins, 2, wins)
+        for w, outs in zip(wins, many):
+            for a, b in zip(outs, window_forward(gen, *ins, 2, w)):
+                torch.testing.assert_close(a, b)
+    assert many[0][0] is many[1][0]  # the whole levels are computed once
+
+
+def test_up_level_weights_scale_each_level_and_leave_down_alone():
+    lc = ModelConfig.lean(1, 1).losses
+    x = torch.ones(1, 1, 1, 1, 1)
+    outs = [torch.ones(1, 1, 2, 2, 2) * 0.5, torch.ones(1, 1, 4, 4, 4) * 0.25]
+    plain = structure_losses(outs, whole_shape_prevs(outs, x), lc)
+    weighted = structure_losses(outs, whole_shape_prevs(outs, x), dataclasses.replace(lc, up_level_weights=(1.0, 0.1)))
+    assert weighted["up"] == plain["up"] and weighted["down"] == plain["down"]
+    expected = 10 * plain["down"] + 10 * plain["up0"] + 10 * 0.1 * plain["up1"]
+    assert weighted["total"].item() == pytest.approx(expected.item())
+    with pytest.raises(DetailizeError, match="up_level_weights"):
+        dataclasses.replace(_cfg(), losses=dataclasses.replace(lc, up_level_weights=(1.0, 0.1)))
+
+
+def test_config_reads_checkpoints_written_before_the_recipe_switches():
+    data = _cfg().to_dict()
+    for key in ("style_init_std", "output_mask", "min_cell_fill"):
+        data.pop(key)
+    data["losses"].pop("up_level_weights")
+    assert ModelConfig.from_dict(data) == _cfg()
+    new = dataclasses.replace(_cfg(), style_init_std=0.5, output_mask=True, min_cell_fill=0.5,
+                              losses=dataclasses.replace(_cfg().losses, up_level_weights=(1, 1, 0.1, 0.1)))
+    assert ModelConfig.from_dict(json.loads(json.dumps(new.to_dict()))) == new
+    with pytest.raises(DetailizeError, match="min_cell_fill"):
+        dataclasses.replace(_cfg(), min_cell_fill=1.5)
+
+
+def test_min_fill_projection_grows_only_the_thin_cells():
+    occ = np.zeros((3, 1, 1), bool)
+    occ[:2] = True
+    rng = np.random.default_rng(0)
+    fine = np.zeros((48, 16, 16), np.float32)
+    fine[:16] = rng.random((16, 16, 16)) * 0.45  # a thin cell: few voxels above 0.4
+    fine[16:32] = 0.9
+    before = fine.copy()
+    out = min_fill_projection(fine, occ, 16, 0.5)
+    fill = cell_fill(out > 0.4, occ | True, 16)
+    assert fill[0] >= 0.5 and fill[1] == 1.0 and fill[2] == 0.0
+    assert np.array_equal(out[16:], before[16:])  # full and empty cells untouched
+    # the thin cell keeps its own order of values (a uniform raise)
+    assert np.array_equal(np.argsort(out[:16].ravel(), kind="stable"), np.argsort(before[:16].ravel(), kind="stable"))
+    assert min_fill_projection(before.copy(), occ, 16, 0.0) is not None
+
+
+def test_warmup_lr_schedule_style_group_and_resume(tmp_path):
+    cfg = dataclasses.replace(_cfg(), style_init_std=1.0)
+    kw = dict(warmup_iters=2, warmup_lr=1e-3, windows_per_step=2, style_lr_mult=10.0, monitor_every=2)
+    trainer = Trainer(EXS, cfg, _tcfg(tmp_path, 3, **kw))
+    assert trainer.learning_rate(0) == pytest.approx(1e-3) and trainer.learning_rate(2) == pytest.approx(1e-4)
+    assert 1e-4 < trainer.learning_rate(1) < 1e-3
+    assert [g["lr_mult"] for g in trainer.opt_g.param_groups] == [1.0, 10.0]
+    res = train(EXS, cfg, _tcfg(tmp_path, 3, **kw), resume=False)
+    log = _log(res.log)
+    assert [r["step"] for r in log] == [1, 2, 3]
+    assert "gan" not in log[0] and "lr" in log[0] and "gan" in log[2]  # warm-up rows: reconstruction only
+    mon = log[1]["monitor"]
+    assert set(mon) >= {"self_iou", "upsample_self_iou", "overlap", "strict", "cell_fill_min", "cells_half_full"}
+    assert 0 <= mon["self_iou"] <= 1 and 0 <= mon["overlap"] <= 1
+    codes = load_checkpoint(res.model).generator["style_codes"]
+    torch.manual_seed(3)
+    assert not torch.equal(codes, Generator(cfg).style_codes.detach())  # the codes moved
+    # resuming from step 2 ends where the unbroken run ends
+    train(EXS, cfg, dataclasses.replace(_tcfg(tmp_path, 2, **kw), out_dir=str(tmp_path / "b")), resume=False)
+    res_b = train(EXS, cfg, dataclasses.replace(_tcfg(tmp_path, 3, **kw), out_dir=str(tmp_path / "b")))
+    a, b = load_checkpoint(res.checkpoint).generator, load_checkpoint(res_b.checkpoint).generator
+    for k in a:
+        torch.testing.assert_close(a[k], b[k], rtol=1e-5, atol=1e-6)
+
+
+def test_monitor_upsample_baseline_is_a_fixed_reference():
+    from model.train import TrainConfig
+
+    cfg = _cfg()
+    mon = Monitor(EXS, cfg, TrainConfig(out_dir="unused", steps=0, resolution=64).augment())
+    assert 0 < mon.baseline_self_iou() <= 1 and mon.baseline_self_iou() == mon.baseline_self_iou()
