@@ -12,13 +12,19 @@ A recipe is YAML::
           - {band: top, part: roof, style: tiles}
 
 Validation is strict (JSON mode): unknown keys are errors, strings are never
-coerced to numbers, lists are accepted where tuples are meant. Reading a recipe
+coerced to numbers, lists are accepted where tuples are meant, NaN and
+infinities are refused, and every number has a documented range (shown as
+``minimum``/``maximum`` in ``decollage schema``): lengths in a source's units
+``SIZE_RANGE``, coordinates within ±``MAX_COORDINATE``, angles within
+±``MAX_ANGLE_DEG``, lengths in metres ``METRES_RANGE``, seeds ``[0, MAX_SEED]``.
+A CAD tree may nest ``MAX_CAD_DEPTH`` levels and hold ``MAX_CAD_NODES`` shapes. Reading a recipe
 file (YAML, defaults, variants, errors naming the file and the field path) is
 ``core/recipe_loader.py``.
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from enum import Enum
 from typing import Annotated, Literal, Optional, Union
 
@@ -28,11 +34,32 @@ from core.detailizer import DEFAULT_DETAILIZER
 
 SCHEMA_VERSION = 1
 
-PositiveFloat = Annotated[float, Field(gt=0)]
-NonNegativeFloat = Annotated[float, Field(ge=0)]
-Vec3 = tuple[float, float, float]
-PositiveVec3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
-Vec2 = tuple[float, float]
+#: Smallest and largest size in a source's own units (CAD dimensions, tolerances, mesh scale factors).
+SIZE_RANGE: tuple[float, float] = (1e-6, 1e6)
+#: Largest absolute coordinate (CAD placements, extrude profiles), in the source's units.
+MAX_COORDINATE: float = 1e6
+#: Largest absolute rotation angle, degrees.
+MAX_ANGLE_DEG: float = 3600.0
+#: Smallest and largest length in metres (text size and depth, voxel sizes).
+METRES_RANGE: tuple[float, float] = (1e-4, 1e3)
+#: Largest seed (seeds are 32-bit).
+MAX_SEED: int = 2**32 - 1
+#: Deepest nesting of CAD booleans (a top-level part is level 1) and most shapes in one CAD source.
+MAX_CAD_DEPTH: int = 32
+MAX_CAD_NODES: int = 1_000
+
+Size = Annotated[float, Field(ge=SIZE_RANGE[0], le=SIZE_RANGE[1])]
+SizeOrZero = Annotated[float, Field(ge=0, le=SIZE_RANGE[1])]
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
+Angle = Annotated[float, Field(ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)]
+Metres = Annotated[float, Field(ge=METRES_RANGE[0], le=METRES_RANGE[1])]
+VoxelMetres = Annotated[float, Field(ge=1e-6, le=METRES_RANGE[1])]
+Vec3 = tuple[Coordinate, Coordinate, Coordinate]
+AngleVec3 = tuple[Angle, Angle, Angle]
+SizeVec3 = tuple[Size, Size, Size]
+Vec2 = tuple[Coordinate, Coordinate]
+#: Longest path a recipe may give for a file.
+MAX_PATH_CHARS = 4096
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$"
 #: Value of a region's part/style meaning "keep what the source says".
 FROM_SOURCE = "@source"
@@ -40,7 +67,7 @@ LABEL_PATTERN = r"^(@source|[A-Za-z0-9][A-Za-z0-9_.\-]*)$"
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, use_enum_values=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, use_enum_values=False, allow_inf_nan=False)
 
 
 # --------------------------------------------------------------------------- enums
@@ -149,14 +176,15 @@ class TextSource(_Strict):
     """Extruded 3D text; one part per glyph named ``glyph_<index>_<char>``."""
 
     kind: Literal["text"]
-    text: str = Field(description="The string; '\\n' starts a new line.")
-    font: Optional[str] = Field(None, description="TTF/OTF path, relative to the recipe; default: bundled DejaVu Sans Bold.")
-    size_m: PositiveFloat = Field(0.2, description="Font size (em height) in metres.")
-    depth_m: Optional[PositiveFloat] = Field(None, description="Extrusion depth in metres; default 0.3 × size_m.")
+    text: str = Field(max_length=2000, description="The string; '\\n' starts a new line.")
+    font: Optional[str] = Field(None, max_length=MAX_PATH_CHARS,
+                                description="TTF/OTF path, relative to the recipe; default: bundled DejaVu Sans Bold.")
+    size_m: Metres = Field(0.2, description="Font size (em height) in metres.")
+    depth_m: Optional[Metres] = Field(None, description="Extrusion depth in metres; default 0.3 × size_m.")
     letter_spacing: float = Field(0.08, ge=-0.5, le=2.0, description="Extra space between glyphs, in em.")
     line_spacing: float = Field(1.2, gt=0, le=5.0, description="Baseline-to-baseline distance, in em.")
     align: TextAlign = TextAlign.CENTER
-    bevel_m: NonNegativeFloat = Field(0.0, description="Chamfer on the front edges, metres; 0 = none.")
+    bevel_m: float = Field(0.0, ge=0, le=METRES_RANGE[1], description="Chamfer on the front edges, metres; 0 = none.")
 
     @field_validator("text")
     @classmethod
@@ -169,38 +197,38 @@ class TextSource(_Strict):
 class _Placed(_Strict):
     name: Optional[str] = Field(None, pattern=NAME_PATTERN, description="Part name (required on top-level parts).")
     at: Vec3 = Field((0.0, 0.0, 0.0), description="Translation, in the source's units.")
-    rotate_deg: Vec3 = Field((0.0, 0.0, 0.0), description="Rotation about the fixed X, then Y, then Z axes, in degrees; applied before 'at'.")
+    rotate_deg: AngleVec3 = Field((0.0, 0.0, 0.0), description="Rotation about the fixed X, then Y, then Z axes, in degrees; applied before 'at'.")
 
 
 class BoxShape(_Placed):
     """A box of ``size`` (x, y, z), centred at the origin before placement."""
 
     shape: Literal["box"]
-    size: PositiveVec3
+    size: SizeVec3
 
 
 class CylinderShape(_Placed):
     """A cylinder along +Z standing on z = 0 (spans z ∈ [0, height]), centred on the Z axis."""
 
     shape: Literal["cylinder"]
-    radius: PositiveFloat
-    height: PositiveFloat
+    radius: Size
+    height: Size
 
 
 class SphereShape(_Placed):
     """A sphere centred at the origin before placement."""
 
     shape: Literal["sphere"]
-    radius: PositiveFloat
+    radius: Size
 
 
 class ConeShape(_Placed):
     """A cone / frustum along +Z: ``radius_bottom`` at z = 0, ``radius_top`` at z = height."""
 
     shape: Literal["cone"]
-    radius_bottom: NonNegativeFloat
-    radius_top: NonNegativeFloat = 0.0
-    height: PositiveFloat
+    radius_bottom: SizeOrZero
+    radius_top: SizeOrZero = 0.0
+    height: Size
 
     @model_validator(mode="after")
     def _one_radius(self) -> "ConeShape":
@@ -213,8 +241,8 @@ class TorusShape(_Placed):
     """A torus centred at the origin, its ring in the XY plane (axis +Z)."""
 
     shape: Literal["torus"]
-    major_radius: PositiveFloat
-    minor_radius: PositiveFloat
+    major_radius: Size
+    minor_radius: Size
 
     @model_validator(mode="after")
     def _radii(self) -> "TorusShape":
@@ -227,15 +255,15 @@ class ExtrudeShape(_Placed):
     """A closed 2-D polygon in the XY plane (any winding), extruded from z = 0 to z = height (+Z, the CAD up axis by default)."""
 
     shape: Literal["extrude"]
-    profile: list[Vec2] = Field(min_length=3)
-    height: PositiveFloat
+    profile: list[Vec2] = Field(min_length=3, max_length=10_000)
+    height: Size
 
 
 class BooleanShape(_Placed):
     """union / difference (first child minus the rest) / intersection of children."""
 
     shape: Literal["union", "difference", "intersection"]
-    children: list["ShapeNode"] = Field(min_length=1)
+    children: list["ShapeNode"] = Field(min_length=1, max_length=MAX_CAD_NODES)
 
     @model_validator(mode="after")
     def _arity(self) -> "BooleanShape":
@@ -262,13 +290,19 @@ class CadSource(_Strict):
     kind: Literal["cad"]
     units: LengthUnit = LengthUnit.M
     up_axis: UpAxis = Field(UpAxis.Z, description="CAD convention is Z up; it is rotated onto +Y.")
-    parts: Optional[list[ShapeNode]] = None
-    script: Optional[str] = None
+    parts: Optional[list[ShapeNode]] = Field(None, max_length=MAX_CAD_NODES)
+    script: Optional[str] = Field(None, max_length=MAX_PATH_CHARS)
     script_function: str = Field("build", pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
     script_engine: Literal["build123d", "cadquery"] = Field(
         "build123d", description="Library the script uses; cadquery scripts run in the optional cadquery runtime.")
-    tolerance: Optional[PositiveFloat] = Field(
+    tolerance: Optional[Size] = Field(
         None, description="Tessellation chord tolerance in the source's units; default 0.1 % of the size.")
+    script_timeout_s: float = Field(
+        300.0, ge=1, le=86_400, description="Wall-clock limit of one script run (start, imports, the script, "
+        "tessellation), seconds; past it the script is stopped and the asset fails.")
+    script_memory_mb: int = Field(
+        4096, ge=512, le=1_048_576, description="Address-space limit of the process a script runs in, MiB; "
+        "a script that needs more fails its asset.")
 
     @model_validator(mode="after")
     def _parts_or_script(self) -> "CadSource":
@@ -280,20 +314,38 @@ class CadSource(_Strict):
             names = [p.name for p in self.parts]
             if any(n is None for n in names):
                 raise ValueError("every top-level part needs a 'name'")
-            dup = {n for n in names if names.count(n) > 1}
+            dup = {n for n, c in Counter(names).items() if c > 1}
             if dup:
                 raise ValueError(f"duplicate part names: {sorted(dup)}")
+            _check_cad_tree(self.parts)
         return self
+
+
+def _check_cad_tree(parts: list) -> None:
+    """Refuse CAD trees deeper than ``MAX_CAD_DEPTH`` or with more than ``MAX_CAD_NODES`` shapes (iterative walk)."""
+    stack = [(node, 1, f"parts[{i}]") for i, node in enumerate(parts)]
+    count = 0
+    while stack:
+        node, depth, where = stack.pop()
+        count += 1
+        if depth > MAX_CAD_DEPTH:
+            raise ValueError(f"the CAD tree is nested more than {MAX_CAD_DEPTH} levels deep (at {where}); "
+                             "flatten it: a union takes any number of children")
+        if count > MAX_CAD_NODES:
+            raise ValueError(f"the CAD tree holds more than {MAX_CAD_NODES} shapes; "
+                             "use a script (source.script) for larger models")
+        for i, child in enumerate(getattr(node, "children", ())):
+            stack.append((child, depth + 1, f"{where}.children[{i}]"))
 
 
 class MeshSource(_Strict):
     """An imported mesh file (OBJ, STL, PLY, OFF, GLB/GLTF)."""
 
     kind: Literal["mesh"]
-    path: str
+    path: str = Field(max_length=MAX_PATH_CHARS)
     up_axis: UpAxis = UpAxis.Y
     units: LengthUnit = LengthUnit.M
-    scale: PositiveFloat = 1.0
+    scale: Size = Field(1.0, description="Factor applied to the file's numbers (after 'units').")
     parts_from: PartsFrom = PartsFrom.NODES
 
 
@@ -301,9 +353,9 @@ class VoxelsSource(_Strict):
     """A grid from another generator: .npy (occupancy) or .npz (occupancy, optional part/style)."""
 
     kind: Literal["voxels"]
-    path: str
+    path: str = Field(max_length=MAX_PATH_CHARS)
     up_axis: UpAxis = UpAxis.Y
-    voxel_size_m: PositiveFloat = Field(0.05, description="Edge of one input voxel in metres.")
+    voxel_size_m: VoxelMetres = Field(0.05, description="Edge of one input voxel in metres.")
 
 
 #: ``VoxSource.model`` value that merges every visible model instance as the scene places it.
@@ -377,7 +429,7 @@ class GridSettings(_Strict):
 
     resolution: int = Field(16, ge=4, le=64, description="Voxels across the fitted extent.")
     fit: Optional[FitMode] = Field(None, description="Default: 'height' for text, 'longest' otherwise.")
-    voxel_size_m: Optional[PositiveFloat] = Field(None, description="Only with fit: voxel_size.")
+    voxel_size_m: Optional[VoxelMetres] = Field(None, description="Only with fit: voxel_size.")
     max_cells: int = Field(
         256, ge=4, le=1024,
         description="Largest allowed coarse grid side (memory guard: the fine grid is 16× larger per axis; "
@@ -443,9 +495,10 @@ class DetailizeSettings(_Strict):
     detailizer: str = Field(DEFAULT_DETAILIZER, description="'decollage' (the learned model; the shipped weights "
                             "unless 'checkpoint' names others), 'quilt' (non-learned: copies the style exemplars' "
                             "detail) or 'upsample' (the non-learned baseline).")
-    checkpoint: Optional[str] = Field(None, description="Checkpoint file for a learned detailizer; for 'quilt' the "
+    checkpoint: Optional[str] = Field(None, max_length=MAX_PATH_CHARS,
+                                      description="Checkpoint file for a learned detailizer; for 'quilt' the "
                                       "style set it copies from (a set name or .npz file; default: things).")
-    seed: int = Field(0, ge=0)
+    seed: int = Field(0, ge=0, le=MAX_SEED)
     device: Device = Device.AUTO
 
 
@@ -454,15 +507,16 @@ class ExportSettings(_Strict):
     preview: bool = True
     preview_size_px: int = Field(512, ge=64, le=4096)
     taubin_iterations: int = Field(0, ge=0, le=200, description="Taubin smoothing passes; 0 = off.")
-    max_triangles: Optional[int] = Field(150_000, ge=4, description="Decimate above this; null = never.")
+    max_triangles: Optional[int] = Field(150_000, ge=4, le=100_000_000, description="Decimate above this; null = never.")
     pivot: Pivot = Pivot.BOTTOM_CENTER
     vertex_colors: bool = True
     glb_material: bool = Field(False, description="Give GLBs a white matte material, for viewers whose default "
                                "glTF material (fully metallic) shows vertex colours too dark.")
     profile: EngineProfile = Field(EngineProfile.GENERIC, description="Engine conventions for names, LODs, "
                                    "collision and axes: generic, unity, unreal, godot.")
-    lods: Optional[Union[list[int], list[float]]] = Field(
-        None, description="LOD chain: ratios of LOD0's triangles ([1.0, 0.5, 0.25]) or triangle counts "
+    lods: Optional[Union[list[Annotated[int, Field(ge=4, le=100_000_000)]],
+                         list[Annotated[float, Field(gt=0, le=1)]]]] = Field(
+        None, max_length=16, description="LOD chain: ratios of LOD0's triangles ([1.0, 0.5, 0.25]) or triangle counts "
                           "([20000, 5000, 1000]); the first entry is LOD0.")
     collision: CollisionKind = CollisionKind.NONE
     vox: list[VoxExport] = Field([], description="Also write <name>.coarse.vox and/or <name>.fine.vox "
@@ -535,8 +589,7 @@ class Recipe(_Strict):
     @field_validator("assets")
     @classmethod
     def _unique_names(cls, assets: list[Asset]) -> list[Asset]:
-        names = [a.name for a in assets]
-        dup = sorted({n for n in names if names.count(n) > 1})
+        dup = sorted(n for n, c in Counter(a.name for a in assets).items() if c > 1)
         if dup:
             raise ValueError(f"asset names must be unique; repeated: {dup}")
         return assets

@@ -1,9 +1,12 @@
 """Reading a recipe file: YAML → a validated ``Recipe`` (``core/recipe.py``), with errors naming file and field.
 
-Loading uses ``yaml.SafeLoader`` (plus a duplicate-key check), applies the
-recipe's ``defaults`` to every asset, expands variants (``core/variants.py``),
-then validates strictly. Any problem raises ``RecipeError`` naming the file
-and the field path (``assets[2].source.font``).
+The file is read within its size limit (``core/files.py``, ``InputKind.RECIPE``)
+and parsed by the bounded YAML reader (``core/safe_yaml.py``: YAML 1.2 numbers,
+no alias bombs, bounded nesting, unique keys); then the recipe's ``defaults``
+apply to every asset, variants expand (``core/variants.py``, within the
+``max_assets`` cap) and the result is validated strictly. Any problem raises
+``RecipeError`` naming the file and the field path (``assets[2].source.font``),
+or the line and column for YAML problems.
 """
 
 from __future__ import annotations
@@ -17,9 +20,10 @@ import yaml
 from pydantic import ValidationError
 
 from core.errors import RecipeError
-from core.files import resolve_relative
+from core.files import InputKind, read_input_bytes, resolve_relative
 from core.recipe import Defaults, Recipe
-from core.variants import expand_assets
+from core.safe_yaml import YamlLimitError, load_yaml
+from core.variants import DEFAULT_MAX_ASSETS, expand_assets
 
 
 class LoadedRecipe:
@@ -39,25 +43,6 @@ class LoadedRecipe:
     def resolve(self, relative: str) -> Path:
         """A path from the recipe, resolved against the recipe's folder."""
         return resolve_relative(relative, self.base_dir)
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that refuses duplicate mapping keys (PyYAML silently keeps the last)."""
-
-
-def _construct_mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
-    seen: dict[Any, Any] = {}
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=deep)
-        if key in seen:
-            raise yaml.constructor.ConstructorError(
-                None, None, f"duplicate key {key!r}", key_node.start_mark
-            )
-        seen[key] = loader.construct_object(value_node, deep=deep)
-    return seen
-
-
-_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
 def format_loc(loc: tuple) -> str:
@@ -131,10 +116,25 @@ def validation_error(exc: ValidationError, path: Path) -> RecipeError:
     return RecipeError(message, file=path, field=field, hint=_hint_for(first))
 
 
-def parse_recipe(text: str, path: Path) -> Recipe:
-    """Parse and validate recipe text; ``path`` is used for messages only."""
+def parse_recipe(text: str, path: Path, max_assets: int | None = DEFAULT_MAX_ASSETS) -> Recipe:
+    """Parse and validate recipe text; ``path`` is used for messages only.
+
+    ``max_assets`` caps the number of assets after variant expansion (None: no cap, for a
+    recipe whose expansion the caller already checked).
+    """
     try:
-        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - SafeLoader subclass
+        return _parse(text, path, max_assets)
+    except RecursionError:  # a safety net: YAML depth and CAD depth are bounded before any deep walk
+        raise RecipeError("the recipe is nested too deeply", file=path,
+                          hint="flatten the data; lists and mappings nest at most a few dozen levels") from None
+
+
+def _parse(text: str, path: Path, max_assets: int | None) -> Recipe:
+    try:
+        data = load_yaml(text)
+    except YamlLimitError as exc:
+        where = f"line {exc.line}, column {exc.column}" if exc.line else None
+        raise RecipeError(exc.message, file=path, field=where, hint=exc.hint) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
@@ -162,7 +162,7 @@ def parse_recipe(text: str, path: Path) -> Recipe:
     if isinstance(defaults, dict) and isinstance(data.get("assets"), list):
 
         try:
-            assets, origin = expand_assets(data["assets"])
+            assets, origin = expand_assets(data["assets"], max_assets)
         except RecipeError as exc:
             raise exc.located(file=path) from None
         data = dict(data)
@@ -201,23 +201,16 @@ def _with_defaults(asset: Any, defaults: dict) -> Any:
     return merged
 
 
-def load_recipe(path: str | Path) -> LoadedRecipe:
-    """Read, parse and validate a recipe file. Raises RecipeError."""
+def load_recipe(path: str | Path, max_assets: int | None = DEFAULT_MAX_ASSETS) -> LoadedRecipe:
+    """Read (within the recipe size limit), parse and validate a recipe file. Raises RecipeError."""
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise RecipeError("file not found", file=path, hint="check the path") from None
-    except IsADirectoryError:
-        raise RecipeError("is a directory, not a recipe file", file=path) from None
-    except OSError as exc:
-        raise RecipeError(f"cannot read: {exc.strerror}", file=path) from None
+    raw = read_input_bytes(path, InputKind.RECIPE, error=RecipeError, file=path)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise RecipeError("not UTF-8 text (is this a binary file?)", file=path,
                           hint="a recipe is a YAML text file") from None
-    recipe = parse_recipe(text, path)
+    recipe = parse_recipe(text, path, max_assets)
     return LoadedRecipe(recipe, path, text)
 
 

@@ -17,12 +17,21 @@ exactly ``${key}`` becomes the value itself (so ``seed`` stays an integer), a
 string containing ``${key}`` gets the value's text. Every key must be used and
 every ``${...}`` must be a key. Each expanded asset records its ``variant``
 (key → value) for the manifest.
+
+Caps, checked on the counts before anything is expanded (so a typo that asks
+for millions of assets is refused at once): one asset's matrix may give at most
+``MAX_VARIANTS_PER_ASSET`` assets, and the whole recipe at most ``max_assets``
+(default ``DEFAULT_MAX_ASSETS``; ``decollage build/validate --max-assets N``
+raises it); and the expanded assets together may hold at most
+``MAX_EXPANDED_VALUES`` YAML values (a big extrude profile times many variants).
+Substitution walks the data with an explicit stack, never by recursion.
 """
 
 from __future__ import annotations
 
 import itertools
 import re
+from collections import Counter
 from typing import Any
 
 from core.errors import RecipeError
@@ -33,6 +42,12 @@ _NAME_UNSAFE = re.compile(r"[^A-Za-z0-9_.\-]+")
 #: Refuse matrices larger than this (a typo like a 1000-value list multiplies fast).
 MAX_VARIANTS_PER_ASSET = 10_000
 
+#: Most assets a recipe may expand to unless the caller raises the cap (``--max-assets``).
+DEFAULT_MAX_ASSETS = 2_000
+
+#: Most values (scalars, lists, mappings) all expanded assets may hold together.
+MAX_EXPANDED_VALUES = 2_000_000
+
 
 def _name_piece(value: Any) -> str:
     """A variant value as it appears in an asset name (unsafe characters become '-')."""
@@ -41,10 +56,28 @@ def _name_piece(value: Any) -> str:
 
 
 def _substitute(node: Any, values: dict[str, Any], path: str, used: set[str]) -> Any:
-    if isinstance(node, dict):
-        return {k: _substitute(v, values, f"{path}.{k}", used) for k, v in node.items()}
-    if isinstance(node, list):
-        return [_substitute(v, values, f"{path}[{i}]", used) for i, v in enumerate(node)]
+    """``node`` with ``${key}`` replaced; iterative (an explicit stack), so depth costs no recursion."""
+    root: list[Any] = [None]
+    # (value to copy, container to put the copy in, key or index there, field path of the value)
+    stack: list[tuple[Any, Any, Any, str]] = [(node, root, 0, path)]
+    while stack:
+        value, container, slot, where = stack.pop()
+        if isinstance(value, dict):
+            copy: Any = {}
+            for k, v in value.items():
+                copy[k] = None
+                stack.append((v, copy, k, f"{where}.{k}"))
+        elif isinstance(value, list):
+            copy = [None] * len(value)
+            for i, v in enumerate(value):
+                stack.append((v, copy, i, f"{where}[{i}]"))
+        else:
+            copy = _substitute_scalar(value, values, where, used)
+        container[slot] = copy
+    return root[0]
+
+
+def _substitute_scalar(node: Any, values: dict[str, Any], path: str, used: set[str]) -> Any:
     if not isinstance(node, str) or "${" not in node:
         return node
     for key in _PLACEHOLDER.findall(node):
@@ -56,6 +89,30 @@ def _substitute(node: Any, values: dict[str, Any], path: str, used: set[str]) ->
     if whole:
         return values[whole.group(1)]
     return _PLACEHOLDER.sub(lambda m: str(values[m.group(1)]), node)
+
+
+def count_values(node: Any) -> int:
+    """Scalars, lists and mappings in ``node`` (itself included); iterative."""
+    count, stack = 0, [node]
+    while stack:
+        value = stack.pop()
+        count += 1
+        if isinstance(value, dict):
+            stack.extend(value.values())
+        elif isinstance(value, list):
+            stack.extend(value)
+    return count
+
+
+def matrix_size(raw: Any) -> int:
+    """How many assets a raw recipe asset expands to (1 without a usable ``variants`` matrix)."""
+    variants = raw.get("variants") if isinstance(raw, dict) else None
+    if not isinstance(variants, dict) or not variants:
+        return 1
+    count = 1
+    for values in variants.values():
+        count *= len(values) if isinstance(values, list) and values else 1
+    return count
 
 
 def _check_matrix(variants: Any, where: str) -> dict[str, list]:
@@ -117,7 +174,7 @@ def expand_asset(raw: dict, index: int) -> list[dict]:
                               hint="reference them as ${key} in the asset or in the name_template")
         names.append(name)
         expanded.append({"name": name, "variant": values, **entry})
-    repeated = sorted({n for n in names if names.count(n) > 1})
+    repeated = sorted(n for n, c in Counter(names).items() if c > 1)
     if repeated:
         raise RecipeError(f"the variants expand to duplicate names {repeated[:5]}",
                           field=f"{where}.name_template",
@@ -125,8 +182,24 @@ def expand_asset(raw: dict, index: int) -> list[dict]:
     return expanded
 
 
-def expand_assets(raw_assets: list) -> tuple[list, list[tuple[int, str | None]]]:
-    """Expand every asset; returns the raw assets and, per expanded asset, (recipe index, variant name or None)."""
+def expand_assets(raw_assets: list, max_assets: int | None = DEFAULT_MAX_ASSETS
+                  ) -> tuple[list, list[tuple[int, str | None]]]:
+    """Expand every asset; returns the raw assets and, per expanded asset, (recipe index, variant name or None).
+
+    Raises RecipeError before expanding anything when the recipe would give more than
+    ``max_assets`` assets (None: no cap) or more than ``MAX_EXPANDED_VALUES`` values.
+    """
+    sizes = [matrix_size(raw) for raw in raw_assets]
+    total = sum(sizes)
+    if max_assets is not None and total > max_assets:
+        biggest = max(range(len(sizes)), key=sizes.__getitem__)
+        raise RecipeError(f"the recipe expands to {total:,} assets, more than the cap of {max_assets:,} "
+                          f"(assets[{biggest}] alone gives {sizes[biggest]:,})", field="assets",
+                          hint="split the batch over several recipes, or raise the cap with --max-assets N")
+    values = sum(count_values(raw) * size for raw, size in zip(raw_assets, sizes) if size > 1)
+    if values > MAX_EXPANDED_VALUES:
+        raise RecipeError(f"the expanded assets would hold {values:,} values, more than {MAX_EXPANDED_VALUES:,}",
+                          field="assets", hint="use fewer variants of large assets (e.g. long extrude profiles)")
     out: list = []
     origin: list[tuple[int, str | None]] = []
     for i, raw in enumerate(raw_assets):

@@ -66,7 +66,7 @@ def test_good_recipe_and_defaults_merge():
         ("version: 1\nversion: 1", "line 2", "duplicate key"),
         (GOOD.replace("text: HELLO", "text: HELLO, colour: red"), "assets[0].source.colour", "unknown key"),
         (GOOD.replace("size: [1, 1, 0.5]", "size: [1, big, 0.5]"), "assets[1].source.parts[0].size[1]", "number"),
-        (GOOD.replace("size: [1, 1, 0.5]", "size: [1, 0, 0.5]"), "assets[1].source.parts[0].size[1]", "greater than 0"),
+        (GOOD.replace("size: [1, 1, 0.5]", "size: [1, 0, 0.5]"), "assets[1].source.parts[0].size[1]", "greater than or equal to 0.000001"),
         (GOOD.replace("kind: text", "kind: txt"), "assets[0].source", "unknown kind 'txt'"),
         (GOOD.replace("shape: sphere", "shape: blob"), "assets[1].source.parts[1].children[1]", "unknown shape"),
         (GOOD.replace("text: HELLO", 'text: "  "'), "assets[0].source.text", "empty"),
@@ -102,7 +102,7 @@ def test_load_recipe_file_errors(tmp_path):
     binary.write_bytes(bytes(range(256)))
     with pytest.raises(RecipeError, match="not UTF-8"):
         load_recipe(binary)
-    with pytest.raises(RecipeError, match="directory"):
+    with pytest.raises(RecipeError, match="folder"):
         load_recipe(tmp_path)
 
 
