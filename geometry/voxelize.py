@@ -146,6 +146,21 @@ def voxelize(source: SourceResult, settings: GridSettings, fit: FitMode, *,
     raise TypeError(f"cannot voxelize a {type(source).__name__}")
 
 
+def mesh_grid_shape(source: PartMeshes, settings: GridSettings, fit: FitMode) -> tuple[tuple[int, int, int], int]:
+    """The coarse grid (X, Y, Z) that ``voxelize`` will give a mesh source, and its supersampling, without voxelizing.
+
+    For a pre-flight memory estimate; raises ``VoxelizeError`` as ``voxelize`` would (no
+    parts, coordinates not finite, zero extent, more than ``grid.max_cells``).
+    """
+    if not source.parts:
+        raise VoxelizeError("the source has no parts", field="grid", hint="check the source")
+    lo, hi = source.bounds_m()
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise VoxelizeError("the source's coordinates are not finite", field="grid", hint="check the source")
+    dims = _grid_dims((hi - lo) / _fit_voxel_size(hi - lo, settings, fit, source.fit_height_m), settings, fit)
+    return dims, COARSE_SUPERSAMPLE if max(dims) <= COARSE_MAX_SIDE else 1
+
+
 def solid_occupancy(mesh: "trimesh.Trimesh", shape: tuple[int, int, int], origin_m, voxel_size_m: float,
                     supersample: int = 1) -> np.ndarray:
     """(X, Y, Z) float32 coverage in [0, 1]: fraction of each voxel's samples inside ``mesh``.

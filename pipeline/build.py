@@ -1,8 +1,15 @@
 """Run the one flow for every asset of a recipe: source → voxelize → regions → detailize → mesh → export.
 
 ``check_recipe`` does every check that needs no heavy work (input files exist,
-detailizer and style names are known) so that a bad recipe fails before
-anything is written. ``plan_build`` computes each asset's content key and finds
+are regular files within their size limits and of a readable format, fonts
+cover the text, the detailizer, checkpoint, style and part names are known)
+so that a bad recipe fails before anything is written; it never runs a
+script. ``build_recipe`` first checks the output folder (``check_output``:
+the folder, its ``.decollage`` records folder and ``manifest.json`` are of the
+right kind and writable) and writes nothing when they are not. While an
+asset builds, its memory is estimated as soon as its grid size is known
+(``core/budget.py``) and library warnings are caught into its manifest
+warnings (``core/capture.py``). ``plan_build`` computes each asset's content key and finds
 the assets whose recorded outputs are still valid (``pipeline/cache.py``).
 ``build_recipe`` builds the rest through an executor (in process, worker
 processes, or a cluster: ``pipeline/executors.py``); a failing asset is
@@ -20,24 +27,26 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from core.budget import check_asset_memory
+from core.capture import captured_warnings
 from core.detailizer import effective_checkpoint, get_detailizer
 from core.errors import DecollageError, RecipeError
-from core.files import ensure_writable_dir, sha256_file
+from core.files import InputKind, check_input_file, check_output_folder, ensure_writable_dir, sha256_file
 from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset
 from core.recipe_loader import LoadedRecipe, parse_recipe
 from core.structure import strict_loose_iou
-from geometry.voxelize import voxelize
-from pipeline.cache import asset_key, remove_stale_temporaries, valid_record, write_record
+from geometry.voxelize import mesh_grid_shape, voxelize
+from pipeline.cache import RECORD_DIR, asset_key, remove_stale_temporaries, valid_record, write_record
 from pipeline.engines import make_collision, make_lods
 from pipeline.executors import LocalExecutor
 from pipeline.export import apply_pivot, export_asset
-from pipeline.manifest import write_build_signal, write_manifest
+from pipeline.manifest import MANIFEST_NAME, write_build_signal, write_manifest
 from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
 from pipeline.provenance import asset_provenance, glb_extras, write_notice
 from pipeline.regions import apply_regions
 from pipeline.report import AssetReport, AssetStatus
 from pipeline.vox_export import vox_files
-from sources import load_source
+from sources import PartMeshes, load_source, preflight_source
 
 
 class Progress:
@@ -87,17 +96,29 @@ def input_paths(loaded: LoadedRecipe, detailizer_override: str | None = None) ->
 
 
 def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -> None:
-    """Static checks before building. Raises RecipeError naming file and field."""
+    """Static checks before building (no script runs). Raises RecipeError naming file and field."""
 
+    checked: dict[tuple, DecollageError | None] = {}  # a batch repeats the same files and texts
     for i, asset in enumerate(loaded.recipe.assets):
         where, variant = loaded.where(i)
         suffix = f" (in variant {variant})" if variant else ""
-        for name, path in _input_files(asset, loaded).items():
-            if not path.exists():
-                raise RecipeError(f"file not found: {path}{suffix}", file=loaded.path, field=f"{where}.source.{name}",
-                                  hint="relative paths are resolved against the recipe's folder")
-            if not path.is_file():
-                raise RecipeError(f"not a file: {path}{suffix}", file=loaded.path, field=f"{where}.source.{name}")
+        try:
+            key = ("source", asset.source.model_dump_json())
+            if key not in checked:
+                checked[key] = None
+                try:
+                    preflight_source(asset.source, loaded.base_dir)
+                except DecollageError as exc:
+                    checked[key] = exc
+            if checked[key] is not None:
+                raise checked[key]
+        except DecollageError as exc:
+            message = exc.message if exc.message.endswith(suffix) else exc.message + suffix
+            raise RecipeError(message, file=loaded.path, field=f"{where}.source.{exc.field or ''}".rstrip("."),
+                              hint=exc.hint) from None
+        if asset.detailize.checkpoint is not None:
+            check_input_file(loaded.resolve(asset.detailize.checkpoint), InputKind.CHECKPOINT, error=RecipeError,
+                             file=loaded.path, field=f"{where}.detailize.checkpoint")
         name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
         try:
             det = get_detailizer(name, checkpoint, asset.detailize.device)
@@ -115,6 +136,14 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
                         hint=(f"use one of the {attr}s the '{det.name}' detailizer was trained on" if det.learned
                               else f"use one of the {attr}s of the style set the '{det.name}' detailizer copies from"),
                     )
+
+
+def check_output(out_dir: Path) -> None:
+    """Before any work: ``out_dir``, its records folder and ``manifest.json`` can be written (ExportError if not).
+
+    Writes nothing (``core.files.check_output_folder``).
+    """
+    check_output_folder(out_dir, folders=(RECORD_DIR,), files=(MANIFEST_NAME,))
 
 
 def plan_build(loaded: LoadedRecipe, out_dir: Path, detailizer_override: str | None = None,
@@ -169,7 +198,8 @@ def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progr
     report = AssetReport(name=asset.name, index=index)
     where, _ = loaded.where(index)
     try:
-        _build(asset, loaded, index, out_dir, progress, report, detailizer_override)
+        with captured_warnings(report.warnings):
+            _build(asset, loaded, index, out_dir, progress, report, detailizer_override)
         report.status = AssetStatus.BUILT
     except DecollageError as exc:
         report.status = AssetStatus.FAILED
@@ -202,8 +232,13 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
             raise _locate(exc, loaded, index, "source")
     report.warnings += source.warnings
 
+    grid_args = {"resolution": asset.grid.resolution, "fit": asset.fit.value}
     with _timed(report, "voxelize", progress):
+        if isinstance(source, PartMeshes):  # refuse a grid too large to voxelize before voxelizing it
+            shape, supersample = mesh_grid_shape(source, asset.grid, asset.fit)
+            check_asset_memory(shape, supersample=supersample, **grid_args)
         part_grid = voxelize(source, asset.grid, asset.fit)
+        check_asset_memory(part_grid.shape, **grid_args)  # the fine grid's cost, before detailizing
     report.warnings += list(part_grid.warnings)
 
     with _timed(report, "regions", progress):
@@ -282,7 +317,8 @@ def build_task(recipe_text: str, recipe_path: str, index: int, key: str, out_dir
     cache_key = (recipe_path, hashlib.sha256(recipe_text.encode()).hexdigest())
     if cache_key not in _LOADED:
         path = Path(recipe_path)
-        _LOADED[cache_key] = LoadedRecipe(parse_recipe(recipe_text, path), path, recipe_text)
+        # The main process checked the expansion against its cap (--max-assets) already.
+        _LOADED[cache_key] = LoadedRecipe(parse_recipe(recipe_text, path, max_assets=None), path, recipe_text)
     out = Path(out_dir)
     report = build_asset(_LOADED[cache_key], index, out, progress or Progress(), detailizer_override)
     if report.status == AssetStatus.BUILT:
@@ -303,11 +339,13 @@ def build_recipe(loaded: LoadedRecipe, out_dir: Path, progress: Progress | None 
 
     progress = progress or Progress()
     executor = executor or LocalExecutor(progress)
+    check_output(out_dir)
     check_recipe(loaded, detailizer_override)
     plan = plan_build(loaded, out_dir, detailizer_override, only, force)
     if any(p.cached_entry is None for p in plan):
         executor.start()  # e.g. connect to a cluster: failing here must leave out_dir untouched
     ensure_writable_dir(out_dir)
+    ensure_writable_dir(out_dir / RECORD_DIR)
     remove_stale_temporaries(out_dir)
     reports: dict[int, AssetReport] = {}
     for p in plan:

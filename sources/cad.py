@@ -80,17 +80,41 @@ def load(spec: CadSource, base_dir: Path) -> PartMeshes:
     return PartMeshes(parts=parts, warnings=warnings, input_files=[])
 
 
+def preflight(spec: CadSource, base_dir: Path) -> None:
+    """Checks that need no CAD kernel: a script exists, is a readable ``.py`` within its size limit. Never runs it."""
+    if spec.script is not None:
+        cad_script.resolve_script(spec, base_dir)
+
+
 # --------------------------------------------------------------------------- building
 
 
 def build_node(node: Any, field: str) -> Any:
-    """One shape node (primitive or boolean, recursively) → a placed build123d shape in source units.
+    """One shape node (primitive or boolean tree) → a placed build123d shape in source units.
 
     ``field`` is the node's path inside the source spec (e.g. ``parts[0].children[1]``),
-    used in error messages.
+    used in error messages. The tree is walked with an explicit stack (children
+    before their boolean), never by recursion, so depth costs no Python stack.
     """
+    built: dict[str, Any] = {}  # field path → placed shape, until its parent takes it
+    stack: list[tuple[Any, str, bool]] = [(node, field, False)]
+    while stack:
+        current, where, children_ready = stack.pop()
+        if isinstance(current, BooleanShape) and not children_ready:
+            stack.append((current, where, True))
+            stack.extend((child, f"{where}.children[{i}]", False)
+                         for i, child in reversed(list(enumerate(current.children))))
+            continue
+        children = ([built.pop(f"{where}.children[{i}]") for i in range(len(current.children))]
+                    if isinstance(current, BooleanShape) else [])
+        built[where] = _build_one(current, where, children)
+    return built[field]
+
+
+def _build_one(node: Any, field: str, children: list[Any]) -> Any:
+    """One node from its already built children; CAD kernel failures become SourceError at ``field``."""
     try:
-        shape = _build_unplaced(node, field)
+        shape = _boolean(node, children, field) if isinstance(node, BooleanShape) else _primitive(node, field)
     except SourceError:
         raise
     except Exception as exc:  # OCCT / build123d failures surface as assorted exception types
@@ -102,7 +126,7 @@ def build_node(node: Any, field: str) -> Any:
     return _place(shape, node.rotate_deg, node.at)
 
 
-def _build_unplaced(node: Any, field: str) -> Any:
+def _primitive(node: Any, field: str) -> Any:
     import build123d as bd
 
     on_floor = (bd.Align.CENTER, bd.Align.CENTER, bd.Align.MIN)
@@ -122,13 +146,10 @@ def _build_unplaced(node: Any, field: str) -> Any:
         # An explicit direction: a clockwise profile's face normal points -Z, and
         # extruding along the normal would then go below z = 0.
         return bd.extrude(face, node.height, dir=(0, 0, 1))
-    if isinstance(node, BooleanShape):
-        return _boolean(node, field)
     raise SourceError(f"unknown shape {getattr(node, 'shape', node)!r}", field=field)  # pragma: no cover
 
 
-def _boolean(node: BooleanShape, field: str) -> Any:
-    children = [build_node(child, f"{field}.children[{i}]") for i, child in enumerate(node.children)]
+def _boolean(node: BooleanShape, children: list[Any], field: str) -> Any:
     result = children[0]
     for other in children[1:]:
         if node.shape == "union":

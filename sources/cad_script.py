@@ -55,7 +55,7 @@ from pathlib import Path
 from typing import Any
 
 from core.errors import SourceError
-from core.files import input_file
+from core.files import InputKind, input_file
 from core.recipe import NAME_PATTERN, CadSource
 from sources.base import PartMeshes
 from sources.cadquery_runner import MAX_MESSAGE_CHARS, describe_exception
@@ -112,7 +112,7 @@ def load(spec: CadSource, base_dir: Path) -> PartMeshes:
 def resolve_script(spec: CadSource, base_dir: Path) -> Path:
     """The script's absolute path; refuses missing files, folders and non-``.py`` files."""
     assert spec.script is not None
-    path = input_file(spec.script, base_dir, field="script", noun="script", hint="name a .py file")
+    path = input_file(spec.script, base_dir, field="script", noun="script", hint="name a .py file", kind=InputKind.SCRIPT)
     if path.suffix != ".py":
         raise SourceError(f"script must be a .py file, got {path.name!r}", field="script",
                           hint="name a Python file that defines the build function")

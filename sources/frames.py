@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from core.errors import SourceError
 from core.recipe import UpAxis
 
 if TYPE_CHECKING:  # trimesh is imported lazily
@@ -68,6 +69,37 @@ def transform_mesh(mesh: "trimesh.Trimesh", up: UpAxis | str, scale: float) -> "
     out = mesh.copy()
     out.apply_transform(_homogeneous(up_axis_rotation(up) * float(scale)))
     return out
+
+
+#: Smallest and largest extent (longest side, metres) a part may have in the canonical frame; outside
+#: this range the part is degenerate (it collapses to a point, or float32 outputs lose it).
+EXTENT_RANGE_M: tuple[float, float] = (1e-6, 1e6)
+
+
+def check_part_geometry(mesh: "trimesh.Trimesh", name: str, field: str) -> None:
+    """Refuse a part that is degenerate after its transforms (units, scale, up axis).
+
+    Degenerate: a coordinate that is not finite, a longest side outside ``EXTENT_RANGE_M``
+    (metres), or every face collapsed (no triangle with an area above 1e-12 of the
+    longest side squared). Raises ``SourceError`` at ``field`` naming the part.
+    """
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    hint = "check the source's units and scale, and its coordinates in a mesh viewer"
+    if vertices.size == 0 or not np.all(np.isfinite(vertices)):
+        raise SourceError(f"part '{name}' has coordinates that are not finite once scaled to metres", field=field,
+                          hint=hint)
+    extent = float((vertices.max(axis=0) - vertices.min(axis=0)).max())
+    low, high = EXTENT_RANGE_M
+    if not low <= extent <= high:
+        what = "too small: it collapses to a point" if extent < low else "too large"
+        raise SourceError(f"part '{name}' is {extent:.3g} m across once scaled to metres, {what} "
+                          f"(parts must be {low:g} m to {high:g} m across)", field=field, hint=hint)
+    with np.errstate(all="ignore"):
+        corners = vertices[np.asarray(mesh.faces, dtype=np.int64)]
+        areas = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    if not np.any(areas > 2e-12 * extent * extent):
+        raise SourceError(f"every face of part '{name}' has collapsed (zero area) once scaled to metres",
+                          field=field, hint=hint)
 
 
 #: Alias under the name used in the architecture notes.

@@ -22,8 +22,12 @@ are merged and degenerate faces dropped, then it is scaled to metres
 ``sources.frames``. A part that is not watertight is kept, with a warning; the
 voxelizer fills it by a 3-axis vote.
 
-Every failure is a ``SourceError`` with ``field="path"``; no exception from
-trimesh escapes.
+The file must be a regular file within the mesh size limit
+(``core/files.py``, ``InputKind.MESH``), checked before it is read. A part
+that is degenerate once scaled (not finite, under 1 µm or over 1,000 km
+across, every face collapsed: ``sources.frames.check_part_geometry``) is an
+error. Every failure is a ``SourceError`` with ``field="path"``; no exception
+from trimesh escapes.
 """
 
 from __future__ import annotations
@@ -36,10 +40,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from core.errors import SourceError
-from core.files import input_file
+from core.files import InputKind, check_input_file, input_file
 from core.recipe import MeshSource, PartsFrom, UpAxis
 from sources.base import PartMeshes
-from sources.frames import transform_mesh
+from sources.frames import check_part_geometry, transform_mesh
 
 if TYPE_CHECKING:
     import trimesh
@@ -69,6 +73,7 @@ def load(spec: MeshSource, base_dir: Path) -> PartMeshes:
         name = unique_name(sanitize_name(original), parts)
         cleaned = _clean(mesh, name)
         parts[name] = transform_mesh(cleaned, spec.up_axis, scale)
+        check_part_geometry(parts[name], name, "path")
         if not cleaned.is_watertight:
             warnings.append(f"part '{name}' is not watertight (it has open or non-manifold edges)")
     if not parts:
@@ -86,7 +91,7 @@ def read_named_parts(path: Path, up_axis: UpAxis | str = UpAxis.Y) -> list[tuple
     stem. Names are not made unique: equal names are returned as separate
     entries. Units are left as they are. Raises ``SourceError`` like ``load``.
     """
-    path = Path(path)
+    path = check_input_file(Path(path), InputKind.MESH, field="path")
     ext = path.suffix.lower().lstrip(".")
     # An OBJ with a single ``o``/``g`` keeps that name (trimesh would return a bare, unnamed mesh).
     named_obj = ext == "obj" and _obj_options(path).get("split_groups", False)
@@ -101,9 +106,14 @@ def read_named_parts(path: Path, up_axis: UpAxis | str = UpAxis.Y) -> list[tuple
     return out
 
 
+def preflight(spec: MeshSource, base_dir: Path) -> None:
+    """Checks before building: the file exists, is a regular file within the mesh size limit, in a known format."""
+    resolve_path(spec.path, base_dir)
+
+
 def resolve_path(relative: str, base_dir: Path) -> Path:
-    """The file's absolute path; refuses missing files, folders and unsupported extensions."""
-    path = input_file(relative, base_dir, field="path", noun="file", hint="name a mesh file")
+    """The file's absolute path; refuses missing files, folders, devices, oversized files and unknown extensions."""
+    path = input_file(relative, base_dir, field="path", noun="file", hint="name a mesh file", kind=InputKind.MESH)
     ext = path.suffix.lower().lstrip(".")
     if ext not in SUPPORTED_FORMATS:
         raise SourceError(f"unsupported mesh format {path.suffix or '(no extension)'!r}", field="path",

@@ -18,7 +18,7 @@ import numpy as np
 
 from core.errors import SourceError
 from core.recipe import CadSource
-from sources.frames import transform_mesh
+from sources.frames import check_part_geometry, transform_mesh
 
 if TYPE_CHECKING:
     import trimesh
@@ -88,7 +88,9 @@ def vertices_to_part(
     if len(mesh.faces) == 0:
         raise SourceError(f"part '{name}' has no triangles left after repair", field=field,
                           hint="the part may be degenerate (flat or tiny)")
-    return transform_mesh(mesh, spec.up_axis, spec.units.metres)
+    part = transform_mesh(mesh, spec.up_axis, spec.units.metres)
+    check_part_geometry(part, name, field)
+    return part
 
 
 def mesh_warnings(name: str, mesh: "trimesh.Trimesh") -> list[str]:

@@ -21,11 +21,18 @@ How it works:
    construction. Geometry is built in font units and scaled once to metres;
    identical glyphs are built once and translated.
 
-Layout: ``size_m`` is the em size; advances come from ``hmtx``; ``letter_spacing``
-(em) is added to every advance; pair kerning comes from the legacy ``kern`` table
-(format 0 subtables) when the font has one. **GPOS kerning, ligatures and other
-shaping are not applied** (no shaping engine); combining marks are placed as the
-font positions them, after NFC normalisation has merged what it can. Lines are
+Layout: ``size_m`` is the em size. A line in a simple script is set glyph by
+glyph: advances come from ``hmtx``; ``letter_spacing`` (em) is added to every
+advance; pair kerning comes from the legacy ``kern`` table (format 0
+subtables) when the font has one (GPOS kerning and ligatures are not applied,
+so such lines look the same in every release). A line that needs shaping
+(right-to-left letters, combining marks, Indic and other complex scripts: see
+``sources/shaping.py``) is shaped by HarfBuzz with the font's OpenType
+features and laid out right to left where its script is; ``letter_spacing``
+is added between clusters, except in joining scripts (Arabic...), whose
+letters it would tear apart. A line mixing left-to-right and right-to-left
+letters is refused. Text is NFC-normalised first when the font covers the
+normalised form. Lines are
 ``line_spacing`` em apart downwards; the first baseline is at y=0. Alignment uses
 each line's advance box (pen start to the end of the last advance, without the
 trailing letter spacing): ``left`` starts it at x=0, ``right`` ends it at x=0,
@@ -56,9 +63,10 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from core.errors import SourceError
-from core.files import input_file
+from core.files import InputKind, input_file, read_input_bytes
 from core.recipe import TextAlign, TextSource
 from sources.base import PartMeshes
+from sources.shaping import Shaper, is_joining, needs_shaping
 
 if TYPE_CHECKING:
     import manifold3d
@@ -190,6 +198,7 @@ class _Font:
             if not 16 <= self.units_per_em <= 16384:
                 raise ValueError(f"unitsPerEm {self.units_per_em} out of range")
             self.cmap: dict[int, str] = font.getBestCmap() or {}
+            self.glyph_order: list[str] = font.getGlyphOrder()
             self.glyph_set = font.getGlyphSet()
             self.metrics: dict[str, tuple[int, int]] = dict(font["hmtx"].metrics)
             self.kerning = _legacy_kerning(font)
@@ -203,6 +212,14 @@ class _Font:
         if is_collection:
             warnings.append(f"font {path.name} is a collection; its first font was used")
         self._font = font
+        self._shaper: Shaper | None = None
+
+    def shaper(self) -> Shaper:
+        """HarfBuzz on this font's bytes (read on first use, within the font size limit)."""
+        if self._shaper is None:
+            data = read_input_bytes(self.path, InputKind.FONT, field="font")
+            self._shaper = Shaper(data, 0)
+        return self._shaper
 
     def _cap_height(self, font) -> float:
         """Height of capitals in font units: OS/2 sCapHeight, else the 'H' outline's top, else 0.7 em."""
@@ -250,10 +267,17 @@ def _legacy_kerning(font) -> dict[tuple[str, str], int]:
     return pairs
 
 
+def preflight(spec: TextSource, base_dir: Path) -> None:
+    """Checks before building: the font exists and is readable within its size limit, and covers the text
+    (layout included: shaping, direction), without building any glyph."""
+    font = _Font(_resolve_font(spec.font, base_dir), [])
+    _layout(_choose_text(spec.text, font.cmap), font, spec)
+
+
 def _resolve_font(font: str | None, base_dir: Path) -> Path:
     if font is None:
         return DEFAULT_FONT
-    return input_file(font, base_dir, field="font", noun="font file", hint="name a .ttf or .otf font file")
+    return input_file(font, base_dir, field="font", noun="font file", hint="name a .ttf or .otf font file", kind=InputKind.FONT)
 
 
 # --------------------------------------------------------------------------- layout
@@ -277,36 +301,80 @@ def _choose_text(text: str, cmap: dict[int, str]) -> str:
     return nfc if covered else text
 
 
-def _layout(text: str, font: _Font, spec: TextSource) -> list[_Placed]:
-    """Pen origins of every character (whitespace included), aligned per line; font units."""
+def _layout(text: str, font: _Font, spec: TextSource, warnings: list[str] | None = None) -> list[_Placed]:
+    """Pen origins of every glyph (whitespace included), aligned per line; font units.
+
+    Glyphs are listed line by line in reading (logical) order, whatever their direction.
+    """
     em = font.units_per_em
-    spacing = spec.letter_spacing * em
-    space_glyph = font.cmap.get(0x20)
-    space_advance = font.advance(space_glyph) if space_glyph else em // 4
-    missing = sorted({ch for ch in text if ch != "\n" and not ch.isspace() and ord(ch) not in font.cmap})
+    lines = text.split("\n")
+    shaped = [needs_shaping(line) for line in lines]
+    simple_chars = {ch for line, s in zip(lines, shaped) if not s for ch in line}
+    missing = sorted({ch for ch in simple_chars if not ch.isspace() and ord(ch) not in font.cmap})
+    _refuse_missing(missing, font)
+    placed: list[_Placed] = []
+    for line_no, line in enumerate(lines):
+        y = -line_no * spec.line_spacing * em
+        row, end = (_shaped_row(line, y, font, spec, warnings) if shaped[line_no]
+                    else _simple_row(line, y, font, spec))
+        shift = {TextAlign.LEFT: 0.0, TextAlign.CENTER: -end / 2, TextAlign.RIGHT: -end}[TextAlign(spec.align)]
+        placed.extend(_Placed(p.char, p.glyph, p.x + shift, p.y) for p in row)
+    return placed
+
+
+def _refuse_missing(missing: list[str], font: _Font) -> None:
     if missing:
         listed = ", ".join(f"{ch!r} (U+{ord(ch):04X})" for ch in missing)
         raise SourceError(f"the font {font.path.name} has no glyph for {listed}",
                           field="text", hint="use a font that covers them, or remove those characters")
-    placed: list[_Placed] = []
-    for line_no, line in enumerate(text.split("\n")):
-        y = -line_no * spec.line_spacing * em
-        row: list[_Placed] = []
-        x = 0.0
-        end = 0.0
-        prev: str | None = None
-        for ch in line:
-            glyph = font.cmap.get(ord(ch), "")  # "" = whitespace the font lacks: advance only
-            advance = font.advance(glyph) if glyph else space_advance
-            if prev is not None:
-                x += spacing + font.kerning.get((prev, glyph), 0)
-            row.append(_Placed(ch, glyph, x, y))
-            end = x + advance
-            x = end
-            prev = glyph
-        shift = {TextAlign.LEFT: 0.0, TextAlign.CENTER: -end / 2, TextAlign.RIGHT: -end}[TextAlign(spec.align)]
-        placed.extend(_Placed(p.char, p.glyph, p.x + shift, p.y) for p in row)
-    return placed
+
+
+def _simple_row(line: str, y: float, font: _Font, spec: TextSource) -> tuple[list[_Placed], float]:
+    """One glyph per character from the cmap, legacy kerning; (row, end of the last advance)."""
+    em = font.units_per_em
+    spacing = spec.letter_spacing * em
+    space_glyph = font.cmap.get(0x20)
+    space_advance = font.advance(space_glyph) if space_glyph else em // 4
+    row: list[_Placed] = []
+    x = end = 0.0
+    prev: str | None = None
+    for ch in line:
+        glyph = font.cmap.get(ord(ch), "")  # "" = whitespace the font lacks: advance only
+        advance = font.advance(glyph) if glyph else space_advance
+        if prev is not None:
+            x += spacing + font.kerning.get((prev, glyph), 0)
+        row.append(_Placed(ch, glyph, x, y))
+        end = x + advance
+        x = end
+        prev = glyph
+    return row, end
+
+
+def _shaped_row(line: str, y: float, font: _Font, spec: TextSource,
+                warnings: list[str] | None) -> tuple[list[_Placed], float]:
+    """A line shaped by HarfBuzz (``sources/shaping.py``); glyphs in logical order, positions visual."""
+    glyphs = font.shaper().shape_line(line)
+    missing = sorted({line[g.cluster] for g in glyphs if g.gid == 0 and not line[g.cluster].isspace()})
+    _refuse_missing(missing, font)
+    spacing = spec.letter_spacing * font.units_per_em
+    if is_joining(line):
+        if spacing and warnings is not None and "letter_spacing" in spec.model_fields_set:
+            warnings.append("letter_spacing is not applied to lines in a joining script (Arabic...): "
+                            "it would separate letters that join")
+        spacing = 0.0
+    row: list[tuple[int, int, _Placed]] = []
+    shift = 0.0
+    end = 0.0
+    previous_cluster: int | None = None
+    for order, g in enumerate(glyphs):  # visual order, left to right
+        if previous_cluster is not None and g.cluster != previous_cluster:
+            shift += spacing
+        previous_cluster = g.cluster
+        name = font.glyph_order[g.gid] if 0 < g.gid < len(font.glyph_order) else ""
+        row.append((g.cluster, order, _Placed(line[g.cluster], name, g.x + shift, y + g.y_offset)))
+        end = g.pen_x + shift + g.advance
+    row.sort(key=lambda item: (item[0], item[1]))  # reading order, for part names
+    return [p for _, _, p in row], end
 
 
 def part_name(index: int, char: str) -> str:
@@ -381,7 +449,7 @@ def load(spec: TextSource, base_dir: Path) -> PartMeshes:
     warnings: list[str] = []
     font_path = _resolve_font(spec.font, base_dir)
     font = _Font(font_path, warnings)
-    placed = _layout(_choose_text(spec.text, font.cmap), font, spec)
+    placed = _layout(_choose_text(spec.text, font.cmap), font, spec, warnings)
 
     regions: dict[str, "manifold3d.CrossSection"] = {}
     for p in placed:

@@ -15,19 +15,25 @@ The grid is turned into the canonical frame by axis permutations and flips
 derived from ``sources.frames.up_axis_rotation``, so a voxel lands exactly
 where the same rotation takes its centre (input voxel (0, 0, 0)'s min corner
 is the origin before rotation; the rotated grid starts at index 0 again).
-Files are read with ``allow_pickle=False``. Every problem is a
+Files are read with ``allow_pickle=False``, and only after their headers were
+checked (``inspect_arrays``): the file must be a regular file within the voxels
+size limit (``core/files.py``, ``InputKind.VOXELS``), and the arrays it holds,
+once decompressed, at most that limit together (a small ``.npz`` cannot
+unpack into gigabytes) in at most ``MAX_ARRAYS`` arrays. Every problem is a
 ``SourceError`` with ``field="path"``.
 """
 
 from __future__ import annotations
 
+import math
 import zipfile
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
 from core.errors import SourceError
-from core.files import input_file
+from core.files import InputKind, input_file, input_limit_bytes
 from core.grid import EMPTY
 from core.recipe import UpAxis, VoxelsSource
 from sources.base import PartVoxels
@@ -38,6 +44,13 @@ from sources.mesh import sanitize_name, unique_name
 SUPPORTED_FORMATS: tuple[str, ...] = ("npy", "npz")
 _NPZ_KEYS = ("occupancy", "part", "part_names", "style", "style_names")
 _MAX_LABELS = int(np.iinfo(np.int16).max)
+#: Most arrays an .npz may hold.
+MAX_ARRAYS: int = 16
+
+
+def preflight(spec: VoxelsSource, base_dir: Path) -> None:
+    """Checks before building: a regular file within the size limit whose array headers are sound (nothing loaded)."""
+    inspect_arrays(_resolve(spec.path, base_dir))
 
 
 def load(spec: VoxelsSource, base_dir: Path) -> PartVoxels:
@@ -87,25 +100,83 @@ def rotate_grid(grid: np.ndarray, up: UpAxis | str) -> np.ndarray:
 
 
 def _resolve(relative: str, base_dir: Path) -> Path:
-    path = input_file(relative, base_dir, field="path", noun="file", hint="name a .npy or .npz file")
+    path = input_file(relative, base_dir, field="path", noun="file", hint="name a .npy or .npz file", kind=InputKind.VOXELS)
     if path.suffix.lower().lstrip(".") not in SUPPORTED_FORMATS:
         raise SourceError(f"unsupported voxel format {path.suffix or '(no extension)'!r}", field="path",
                           hint="supported: .npy (one occupancy array) or .npz (occupancy, part, style...)")
     return path
 
 
-def _read(path: Path) -> dict[str, np.ndarray]:
-    """The file's arrays by name (an .npy becomes ``{"occupancy": array}``)."""
+def inspect_arrays(path: Path) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+    """Name → (shape, dtype) of every array in the file, from the headers only; refuses what ``_read`` must not load.
+
+    Refused: not an .npy/.npz file, an array of Python objects, more than ``MAX_ARRAYS``
+    arrays, or arrays whose data together exceed the voxels size limit once decompressed.
+    """
     is_npz = path.suffix.lower() == ".npz"
+    limit = input_limit_bytes(InputKind.VOXELS)
     try:
         with open(path, "rb") as handle:
             magic = handle.read(6)
+            handle.seek(0)
+            # np.load would take anything else for a pickle and blame pickling; name the real problem.
+            if magic == b"\x93NUMPY":
+                headers = {"occupancy": _npy_header(handle, path, is_npz)}
+            elif magic.startswith((b"PK\x03\x04", b"PK\x05\x06")):
+                headers = _npz_headers(handle, path, limit)
+            else:
+                raise SourceError("cannot read voxels: " + ("the file is empty" if not magic else
+                                  "not a NumPy .npy/.npz file"), field="path", hint=_format_hint(is_npz))
     except OSError as exc:
-        raise SourceError(f"cannot read voxels: {exc.strerror}", field="path") from None
-    # np.load would take anything else for a pickle and blame pickling; name the real problem.
-    if not (magic == b"\x93NUMPY" or magic.startswith(b"PK\x03\x04") or magic.startswith(b"PK\x05\x06")):
-        raise SourceError("cannot read voxels: " + ("the file is empty" if not magic else
-                          "not a NumPy .npy/.npz file"), field="path", hint=_format_hint(is_npz))
+        raise SourceError(f"cannot read voxels: {exc.strerror or exc}", field="path") from None
+    total = sum(math.prod(shape) * dtype.itemsize for shape, dtype in headers.values())
+    if total > limit:
+        raise SourceError(f"the arrays hold {total / (1 << 20):,.1f} MB once decompressed, more than the "
+                          f"{limit / (1 << 20):g} MB limit for voxels files", field="path",
+                          hint=f"use a smaller grid, or raise the limit with {InputKind.VOXELS.env_var}=<MB>")
+    return headers
+
+
+def _npy_header(handle: BinaryIO, path: Path, is_npz: bool) -> tuple[tuple[int, ...], np.dtype]:
+    try:
+        version = np.lib.format.read_magic(handle)
+        reader = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, dtype = reader(handle)
+    except (ValueError, EOFError, OSError, SyntaxError, TypeError) as exc:
+        raise SourceError(f"cannot read voxels: a broken array header ({str(exc).splitlines()[0][:120]})",
+                          field="path", hint=_format_hint(is_npz)) from None
+    if dtype.hasobject:
+        raise SourceError("cannot read voxels: it holds Python objects, which are not loaded for safety",
+                          field="path", hint=_format_hint(is_npz))
+    return tuple(int(n) for n in shape), dtype
+
+
+def _npz_headers(handle: BinaryIO, path: Path, limit: int) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+    try:
+        with zipfile.ZipFile(handle) as archive:
+            members = [info for info in archive.infolist() if not info.is_dir()]
+            if len(members) > MAX_ARRAYS:
+                raise SourceError(f"the .npz holds {len(members)} files, more than {MAX_ARRAYS}", field="path",
+                                  hint="save only occupancy, part, part_names, style and style_names")
+            unpacked = sum(info.file_size for info in members)
+            if unpacked > limit:
+                raise SourceError(f"the .npz unpacks to {unpacked / (1 << 20):,.1f} MB, more than the "
+                                  f"{limit / (1 << 20):g} MB limit for voxels files", field="path",
+                                  hint=f"use a smaller grid, or raise the limit with {InputKind.VOXELS.env_var}=<MB>")
+            headers = {}
+            for info in members:
+                with archive.open(info) as member:
+                    headers[info.filename.removesuffix(".npy")] = _npy_header(member, path, True)
+            return headers
+    except (zipfile.BadZipFile, EOFError, RuntimeError, NotImplementedError) as exc:
+        raise SourceError(f"cannot read voxels: {type(exc).__name__}: {str(exc)[:160]}", field="path",
+                          hint=_format_hint(True)) from None
+
+
+def _read(path: Path) -> dict[str, np.ndarray]:
+    """The file's arrays by name (an .npy becomes ``{"occupancy": array}``), after ``inspect_arrays``."""
+    is_npz = path.suffix.lower() == ".npz"
+    inspect_arrays(path)
     try:
         # np.load goes by the file's magic bytes, not its extension.
         loaded = np.load(path, allow_pickle=False)
