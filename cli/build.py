@@ -13,9 +13,10 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from cli.console import ExitCode, fail, stderr
+from cli.console import ExitCode, fail, literal, stderr
 from core.errors import DecollageError, UsageError
 from core.recipe_loader import load_recipe
+from core.variants import DEFAULT_MAX_ASSETS
 from pipeline.build import build_recipe, check_recipe, plan_build
 from pipeline.executors import ExecutorKind, LocalExecutor, make_executor
 from pipeline.report import AssetStatus
@@ -35,6 +36,8 @@ def build_command(
                                         help="GPUs a cluster task asks for (Dask resource 'GPU')."),
     force: bool = typer.Option(False, "--force", help="Rebuild even assets whose outputs are up to date."),
     list_only: bool = typer.Option(False, "--list", help="Show the assets (variants expanded) and stop."),
+    max_assets: int = typer.Option(DEFAULT_MAX_ASSETS, "--max-assets", min=1,
+                                   help="Refuse a recipe whose variants expand to more assets than this."),
     check: bool = typer.Option(False, "--check", help="Exit 1 if any output is stale; build nothing."),
     json_out: bool = typer.Option(False, "--json", help="Machine-readable summary on stdout; logs on stderr."),
     keep_going: bool = typer.Option(True, "--keep-going/--fail-fast",
@@ -50,7 +53,7 @@ def build_command(
 
     started = time.perf_counter()
     try:
-        loaded = load_recipe(recipe)
+        loaded = load_recipe(recipe, max_assets)
         assets = loaded.recipe.assets
         names = [a.name for a in assets]
         unknown = sorted(set(only or ()) - set(names))
@@ -97,7 +100,7 @@ def build_command(
     failed = [r for r in reports if r.status != AssetStatus.BUILT]
     if failed:
         stderr().print(f"[red]{len(failed)} of {len(reports)} assets failed[/]; "
-                        f"the others are in {out} (see manifest.json)")
+                        f"the others are in {literal(out)} (see manifest.json)")
         raise typer.Exit(ExitCode.ASSETS_FAILED)
 
 
@@ -235,12 +238,12 @@ class _ConsoleProgress:
             elif report.status == AssetStatus.BUILT:
                 self.console.print(f"[green]built[/]  {report.name} ({sum(report.timings_s.values()):.1f} s)")
             else:
-                self.console.print(f"[red]failed[/] {report.name}: {report.error}")
+                self.console.print(f"[red]failed[/] {report.name}: {literal(report.error)}")
             if not report.cached:
                 for w in report.warnings:
-                    self.console.print(f"  [yellow]warning:[/] {w}")
+                    self.console.print(f"  [yellow]warning:[/] {literal(w)}")
         elif report.status == AssetStatus.FAILED:
-            self.console.print(f"[red]failed[/] {report.name}: {report.error}")
+            self.console.print(f"[red]failed[/] {report.name}: {literal(report.error)}")
         if report.status == AssetStatus.FAILED and not self.keep_going:
             raise _Stopped(list(self.reports))
 

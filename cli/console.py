@@ -14,6 +14,7 @@ from enum import IntEnum
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from core.errors import DecollageError
 from studio.http import serve
@@ -35,8 +36,12 @@ def stderr() -> Console:
 
 
 def fail(exc: DecollageError, code: ExitCode = ExitCode.INVALID) -> None:
-    """Print ``error: <file>: <field>: <message> (<hint>)`` and exit with ``code``."""
-    stderr().print(f"[bold red]error:[/] {exc.one_line()}", markup=True)
+    """Print ``error: <file>: <field>: <message> (<hint>)`` and exit with ``code``.
+
+    The message is printed literally: brackets in it (``assets[2]``, ``pip install 'decollage[cluster]'``)
+    are not read as console markup.
+    """
+    stderr().print(f"[bold red]error:[/] {escape(exc.one_line())}", markup=True)
     raise typer.Exit(int(code))
 
 
@@ -62,3 +67,7 @@ def serve_page(server, title: str, open_browser: bool = False) -> None:
 
     serve(server, ready)
     stderr().print("stopped")
+
+def literal(text: str) -> str:
+    """``text`` safe to embed in console markup (brackets shown as they are)."""
+    return escape(str(text))

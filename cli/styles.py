@@ -25,7 +25,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from cli.console import fail, stderr
+from cli.console import fail, literal, stderr
 from core.errors import DecollageError, UsageError
 from core.recipe import UpAxis
 from stylesets.contact_sheet import write_contact_sheet
@@ -112,7 +112,7 @@ def _report(result, warnings, sheet: bool, quiet: bool) -> None:
     if not quiet:
         console.print(_exemplar_table(result.style_set))
     for warning in warnings:
-        stderr().print(f"[yellow]warning:[/] {warning}")
+        stderr().print(f"[yellow]warning:[/] {literal(warning)}")
     state = "built" if result.built else "up to date (cached)"
     stderr().print(f"{state} in {result.seconds:.1f} s")
     typer.echo(f"set: {result.path}")
@@ -222,7 +222,7 @@ def list_command(
                     fresh = meta.get("inputs_hash") == inputs_hash(name, vocab, specs, int(meta["resolution"]))
                     status = "[green]built[/]" if fresh else "[yellow]stale[/] (rebuild: styles build)"
                 except ExemplarError as exc:
-                    status = f"[red]unreadable[/] ({exc.message})"
+                    status = f"[red]unreadable[/] ({literal(exc.message)})"
             table.add_row(name, "built-in", str(len(specs)), grid, status, str(path))
         files = sorted(folder.glob("*.npz")) if folder.is_dir() else []
         for path in files:
@@ -233,7 +233,7 @@ def list_command(
                 table.add_row(str(meta["set"]), "user" if _all_user(meta) else "file", str(len(meta["exemplars"])),
                               str(meta["resolution"]), "[green]built[/]", str(path))
             except ExemplarError as exc:
-                table.add_row(path.stem, "file", "-", "-", f"[red]unreadable[/] ({exc.message})", str(path))
+                table.add_row(path.stem, "file", "-", "-", f"[red]unreadable[/] ({literal(exc.message)})", str(path))
     except DecollageError as exc:
         fail(exc)
     _console().print(table)

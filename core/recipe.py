@@ -301,8 +301,8 @@ class CadSource(_Strict):
         300.0, ge=1, le=86_400, description="Wall-clock limit of one script run (start, imports, the script, "
         "tessellation), seconds; past it the script is stopped and the asset fails.")
     script_memory_mb: int = Field(
-        4096, ge=512, le=1_048_576, description="Address-space limit of the process a script runs in, MiB; "
-        "a script that needs more fails its asset.")
+        4096, ge=64, le=1_048_576, description="Memory a script may take beyond the CAD engine's own, MiB "
+        "(an address-space limit of the process it runs in); a script that needs more fails its asset.")
 
     @model_validator(mode="after")
     def _parts_or_script(self) -> "CadSource":

@@ -35,6 +35,7 @@ from typing import Any
 
 from model.config import ModelConfig
 from core.errors import DetailizeError
+from core.files import InputKind, check_input_file
 
 #: Value of the ``"format"`` entry; anything else is a foreign file.
 FORMAT_NAME = "decollage-checkpoint"
@@ -176,6 +177,16 @@ def load_checkpoint(path: str | Path, *, training_state: bool = False) -> Checkp
         raise DetailizeError("checkpoint not found", file=path, hint="check the path, or train one with decollage train")
     if not path.is_file():
         raise DetailizeError("checkpoint is not a file", file=path, hint="point to the .pt file itself")
+    check_input_file(path, InputKind.CHECKPOINT, error=DetailizeError, file=path)  # no device, within its size limit
+    try:
+        with open(path, "rb") as handle:
+            magic = handle.read(4)
+    except OSError as exc:
+        raise DetailizeError(f"cannot read checkpoint: {exc.strerror or exc}", file=path) from None
+    # torch.save writes a zip (PK..); older torch a pickle (protocol 2+: 0x80 then the protocol number).
+    if not (magic.startswith(b"PK\x03\x04") or (len(magic) > 1 and magic[0] == 0x80 and 2 <= magic[1] <= 5)):
+        raise DetailizeError("not a readable decollage checkpoint (it is not a torch file or it is truncated)",
+                             file=path, hint="re-download or re-train it; only files written by decollage are accepted")
     try:
         raw = torch.load(path, map_location="cpu", weights_only=True)
     except OSError as exc:

@@ -345,7 +345,6 @@ def build_recipe(loaded: LoadedRecipe, out_dir: Path, progress: Progress | None 
     if any(p.cached_entry is None for p in plan):
         executor.start()  # e.g. connect to a cluster: failing here must leave out_dir untouched
     ensure_writable_dir(out_dir)
-    ensure_writable_dir(out_dir / RECORD_DIR)
     remove_stale_temporaries(out_dir)
     reports: dict[int, AssetReport] = {}
     for p in plan:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Create the optional cadquery runtime: a separate venv used only to run
-# cadquery recipe scripts (sources/_cadquery_runner.py runs inside it).
+# cadquery recipe scripts (sources/script_runner.py runs inside it).
 #
 # Why a separate venv: cadquery 2.8 needs OCP 7.9.x, build123d 0.13 (the main
 # environment) needs OCP 8.0.x; both write the same `OCP/` package, so they

@@ -3,8 +3,21 @@
 Security model: a script is ordinary Python with the user's full rights. It
 runs **only because the recipe names it** (``source.script``), exactly like
 running ``python script.py`` by hand; decollage never runs a script that a
-recipe does not name, never fetches scripts, and does not sandbox them. Treat
-recipes from others like any code from others.
+recipe does not name, never fetches scripts, and does not sandbox them against
+reading or writing the user's files. Treat recipes from others like any code
+from others. ``validate``, ``build --list`` and ``build --check`` never run a
+script (``sources.cad.preflight`` only checks the file).
+
+Isolation: a script never runs in the build's own process. Both engines run it
+the same way, through ``sources/script_runner.py`` (its docstring has the
+protocol): a warm runner process per engine imports the engine once, and
+forks one child per script run, in a process group of its own, limited to
+``spec.script_timeout_s`` seconds and ``spec.script_memory_mb`` MiB of address
+space beyond the engine's own. So a script that calls ``os._exit``, crashes
+the CAD kernel, loops forever or eats memory fails its asset with a message
+saying which, and the build goes on (exit code 1). ``sys.exit`` inside the
+script is an exception like any other. Whatever the script leaves running is
+killed when it returns.
 
 The script (a ``.py`` file, relative to the recipe's folder) defines a function
 ``spec.script_function`` (default ``build``) that takes no arguments and returns:
@@ -13,29 +26,27 @@ The script (a ``.py`` file, relative to the recipe's folder) defines a function
 - a ``dict`` of part name → shape → one part per entry, in the dict's order;
 - a ``list`` of ``(name, shape)`` pairs → one part per pair, in list order.
 
-Part names must match ``recipe.NAME_PATTERN`` and be unique. A "shape" is any
-build123d ``Shape`` (``Part``, ``Solid``, ``Compound``...) or a ``BuildPart``
-builder (its ``.part`` is used). Numbers in the script are in ``spec.units``;
-the script's up axis is ``spec.up_axis`` (CAD's Z by default).
+Part names must match ``recipe.NAME_PATTERN`` and be unique. Numbers in the
+script are in ``spec.units``; the script's up axis is ``spec.up_axis`` (CAD's
+Z by default). The script runs with ``__name__ == "decollage_script"`` (so an
+``if __name__ == "__main__":`` block does not run) and its folder first on
+``sys.path`` (helper modules beside it can be imported: they are reported
+and join ``PartMeshes.input_files`` after the script). The working directory
+is not changed: open data files via ``__file__``. Its printed output is
+discarded.
 
 Engines:
 
-- ``build123d`` (default): the file runs in this process with ``runpy.run_path``
-  in a fresh namespace whose ``__name__`` is ``"decollage_script"`` (so an
-  ``if __name__ == "__main__":`` block does not run). The script's folder is on
-  ``sys.path`` while it runs, so it can import helper modules next to it.
-  The working directory is not changed: open data files via ``__file__``.
+- ``build123d`` (default): the runner runs under this interpreter
+  (``sys.executable``). Shapes: any build123d ``Shape`` or a ``BuildPart``.
 - ``cadquery``: cadquery 2.8 and build123d 0.13 need different OCP versions and
   cannot share a venv, so cadquery scripts run in a **separate, optional
   runtime**: another Python interpreter that has cadquery installed. It is
   found, in order, at ``$DECOLLAGE_CADQUERY_PYTHON``; ``<repo>/.venv-cadquery/bin/python``
   (``<repo>`` = the folder holding ``sources/``); ``<parent of sys.prefix>/.venv-cadquery/bin/python``
   (a cadquery venv beside the main venv). ``bash scripts/install.sh cadquery``
-  creates it. That interpreter runs ``sources/cadquery_runner.py`` (which
-  imports nothing from decollage) in a subprocess; the runner tessellates each
-  part to a binary STL plus ``index.json`` in a temporary folder, and this
-  module loads them. Shapes accepted there: ``cq.Workplane`` (its ``.vals()``
-  combined), ``cq.Shape``, ``cq.Assembly``, and dicts / lists of those.
+  creates it. Shapes: ``cq.Workplane`` (its ``.vals()`` combined),
+  ``cq.Shape``, ``cq.Assembly``, and dicts / lists of those.
 
 Errors inside the script become ``SourceError(field="script")`` with a message
 like ``script raised ValueError: bad size (line 12 of tower.py)``; no traceback
@@ -44,31 +55,26 @@ is shown.
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
 import re
-import runpy
+import select
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from core.errors import SourceError
 from core.files import InputKind, input_file
 from core.recipe import NAME_PATTERN, CadSource
 from sources.base import PartMeshes
-from sources.cadquery_runner import MAX_MESSAGE_CHARS, describe_exception
-from sources.tessellate import (
-    ANGULAR_TOLERANCE_RAD,
-    DEFAULT_RELATIVE_TOLERANCE,
-    mesh_warnings,
-    shapes_to_parts,
-    vertices_to_part,
-)
-
-#: Wall-clock limit for one cadquery script run (subprocess start + import + script + tessellation), seconds.
-CADQUERY_TIMEOUT_S: float = 300.0
+from sources.tessellate import ANGULAR_TOLERANCE_RAD, DEFAULT_RELATIVE_TOLERANCE, mesh_warnings, vertices_to_part
 
 #: Environment variable naming the cadquery runtime's Python interpreter.
 CADQUERY_PYTHON_ENV: str = "DECOLLAGE_CADQUERY_PYTHON"
@@ -83,115 +89,58 @@ CADQUERY_INSTALL_HINT: str = (
     "to a Python interpreter that has cadquery 2.8 installed"
 )
 
-#: Module name scripts run under (anything but "__main__", so `if __name__ == "__main__":` blocks stay quiet).
-SCRIPT_MODULE_NAME: str = "decollage_script"
+#: Seconds a runner may take to start (import its engine) before it is given up.
+RUNNER_START_TIMEOUT_S: float = 180.0
 
-_RUNNER = Path(__file__).resolve().with_name("cadquery_runner.py")
-_ACCEPTED = "a shape, a dict of part name → shape, or a list of (name, shape) pairs"
+_RUNNER = Path(__file__).resolve().with_name("script_runner.py")
+_SIGNALS = {signal.SIGSEGV: "a segmentation fault", signal.SIGABRT: "an abort", signal.SIGBUS: "a bus error",
+            signal.SIGFPE: "a floating-point exception", signal.SIGILL: "an illegal instruction",
+            signal.SIGKILL: "a kill (out of memory?)"}
+_FIX = "fix the script; run it with python to see the full traceback"
 
 
 def load(spec: CadSource, base_dir: Path) -> PartMeshes:
-    """Run ``spec.script`` and turn what its function returns into canonical part meshes.
+    """Run ``spec.script`` in an isolated process and turn what its function returns into canonical part meshes.
 
     Returns:
-        PartMeshes (metres, +Y up) with ``input_files=[script path]``.
+        PartMeshes (metres, +Y up) with ``input_files=[script path, local modules it imported...]``.
 
     Raises:
         SourceError: missing / unreadable script (field ``script``), missing function
-            (``script_function``), script exceptions or bad return values (``script``),
-            missing cadquery runtime (``script_engine``).
+            (``script_function``), script exceptions, bad return values, a script that ended
+            its process, crashed, ran past ``script_timeout_s`` or ``script_memory_mb``
+            (``script``), missing or broken runtime (``script_engine``).
     """
     path = resolve_script(spec, base_dir)
-    if spec.script_engine == "cadquery":
-        parts, warnings = _load_cadquery(spec, path)
-    else:
-        parts, warnings = _load_build123d(spec, path)
-    return PartMeshes(parts=parts, warnings=warnings, input_files=[path])
+    python = find_cadquery_python() if spec.script_engine == "cadquery" else Path(sys.executable)
+    with tempfile.TemporaryDirectory(prefix="decollage-script-") as tmp:
+        outdir = Path(tmp)
+        status = _runner(python, spec.script_engine).run({
+            "script": str(path), "function": spec.script_function, "outdir": str(outdir),
+            "tolerance": spec.tolerance if spec.tolerance is not None else "auto",
+            "relative_tolerance": DEFAULT_RELATIVE_TOLERANCE, "angular_tolerance": ANGULAR_TOLERANCE_RAD,
+            "timeout_s": spec.script_timeout_s, "memory_mb": spec.script_memory_mb,
+        }, spec.script_timeout_s)
+        result = _read_result(outdir, status, spec, python)
+        names = check_part_names([e.get("name") for e in result["parts"]], spec.script_function)
+        parts = {}
+        for name, entry in zip(names, result["parts"]):
+            vertices, faces = _read_part(outdir, entry, name, python)
+            parts[name] = vertices_to_part(vertices, faces, spec, name, "script")
+    warnings = [w for name, mesh in parts.items() for w in mesh_warnings(name, mesh)]
+    local = [Path(p) for p in result.get("local_modules", []) if isinstance(p, str) and Path(p) != path]
+    return PartMeshes(parts=parts, warnings=warnings, input_files=[path, *local])
 
 
 def resolve_script(spec: CadSource, base_dir: Path) -> Path:
-    """The script's absolute path; refuses missing files, folders and non-``.py`` files."""
+    """The script's absolute path; refuses missing files, folders, devices, oversized and non-``.py`` files."""
     assert spec.script is not None
-    path = input_file(spec.script, base_dir, field="script", noun="script", hint="name a .py file", kind=InputKind.SCRIPT)
+    path = input_file(spec.script, base_dir, field="script", noun="script", hint="name a .py file",
+                      kind=InputKind.SCRIPT)
     if path.suffix != ".py":
         raise SourceError(f"script must be a .py file, got {path.name!r}", field="script",
                           hint="name a Python file that defines the build function")
     return path
-
-
-# --------------------------------------------------------------------------- build123d, in-process
-
-
-def _load_build123d(spec: CadSource, path: Path) -> tuple[dict, list[str]]:
-    result = _call_script(path, spec.script_function)
-    named = named_shapes(result, path, spec.script_function)
-    return shapes_to_parts([(name, shape, "script") for name, shape in named], spec)
-
-
-def _call_script(path: Path, function: str) -> Any:
-    """Run the file in a fresh namespace and call its function; script errors → SourceError."""
-    folder = str(path.parent)
-    added = folder not in sys.path
-    if added:
-        sys.path.insert(0, folder)  # lets the script import helper modules beside it
-    try:
-        try:
-            namespace = runpy.run_path(str(path), run_name=SCRIPT_MODULE_NAME)
-        except (Exception, SystemExit) as exc:  # anything the script raises while loading
-            raise script_error(exc, path) from None
-        target = namespace.get(function)
-        if not callable(target):
-            found = sorted(
-                name for name, obj in namespace.items()
-                if callable(obj) and getattr(getattr(obj, "__code__", None), "co_filename", None) == str(path)
-            )
-            listing = ", ".join(found) if found else "none"
-            raise SourceError(
-                f"script has no function {function!r} (functions defined in {path.name}: {listing})",
-                field="script_function",
-                hint=f"define `def {function}():` returning {_ACCEPTED}, or set script_function",
-            )
-        try:
-            return target()
-        except (Exception, SystemExit) as exc:
-            raise script_error(exc, path) from None
-    finally:
-        if added and folder in sys.path:
-            sys.path.remove(folder)
-
-
-def script_error(exc: BaseException, path: Path) -> SourceError:
-    """``script raised <Type>: <message> (line N of <file>)`` for an exception from a user's script."""
-    return SourceError(describe_exception(exc, path), field="script",
-                       hint="fix the script; run it with python to see the full traceback")
-
-
-def named_shapes(result: Any, path: Path, function: str) -> list[tuple[str, Any]]:
-    """The script function's return value → ``[(part name, build123d Shape), ...]`` in order."""
-    import build123d as bd
-
-    def as_shape(obj: Any, what: str) -> Any:
-        if isinstance(obj, bd.BuildPart):
-            obj = obj.part
-        if isinstance(obj, bd.Shape):
-            return obj
-        raise SourceError(
-            f"{function}() returned {what} that is a {type(obj).__name__}, not a build123d shape",
-            field="script", hint=f"return {_ACCEPTED}")
-
-    if isinstance(result, (bd.Shape, bd.BuildPart)):
-        return [(stem_part_name(path), as_shape(result, "a value"))]
-    if isinstance(result, dict):
-        pairs = list(result.items())
-    elif isinstance(result, (list, tuple)) and result and all(
-        isinstance(item, (list, tuple)) and len(item) == 2 for item in result
-    ):
-        pairs = [tuple(item) for item in result]
-    else:
-        raise SourceError(f"{function}() returned a {type(result).__name__}; expected {_ACCEPTED}",
-                          field="script", hint=f"return {_ACCEPTED}")
-    names = check_part_names([name for name, _ in pairs], function)
-    return [(name, as_shape(obj, f"part {name!r}")) for name, (_, obj) in zip(names, pairs)]
 
 
 def check_part_names(names: list[Any], function: str) -> list[str]:
@@ -204,21 +153,12 @@ def check_part_names(names: list[Any], function: str) -> list[str]:
             raise SourceError(
                 f"{function}() returned an invalid part name {name!r}", field="script",
                 hint="part names start with a letter or digit and use only letters, digits, '_', '.', '-'")
-    duplicates = sorted({n for n in names if names.count(n) > 1})
+    seen: set[str] = set()
+    duplicates = sorted({n for n in names if n in seen or seen.add(n)})
     if duplicates:
         raise SourceError(f"{function}() returned duplicate part names: {duplicates}", field="script",
                           hint="give every part its own name")
     return names
-
-
-def stem_part_name(path: Path) -> str:
-    """A valid part name from the script's file stem (``my tower.py`` → ``my_tower``)."""
-    name = re.sub(r"[^A-Za-z0-9_.\-]", "_", path.stem)
-    name = re.sub(r"^[^A-Za-z0-9]+", "", name)
-    return name or "part"
-
-
-# --------------------------------------------------------------------------- cadquery, in its own runtime
 
 
 def find_cadquery_python() -> Path:
@@ -244,79 +184,159 @@ def find_cadquery_python() -> Path:
                       field="script_engine", hint=CADQUERY_INSTALL_HINT)
 
 
-def _load_cadquery(spec: CadSource, path: Path) -> tuple[dict, list[str]]:
-    python = find_cadquery_python()
-    with tempfile.TemporaryDirectory(prefix="decollage-cq-") as tmp:
-        outdir = Path(tmp)
-        command = [
-            str(python), str(_RUNNER), str(path), spec.script_function, str(outdir),
-            "--tolerance", repr(spec.tolerance) if spec.tolerance is not None else "auto",
-            "--relative-tolerance", repr(DEFAULT_RELATIVE_TOLERANCE),
-            "--angular-tolerance", repr(ANGULAR_TOLERANCE_RAD),
-        ]
-        # The runtime is another venv: our PYTHONPATH/PYTHONHOME would leak this venv's OCP into it.
-        env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+# --------------------------------------------------------------------------- the runner process
+
+
+class _Runner:
+    """One warm ``script_runner.py serve ENGINE`` process; ``run`` sends a request and waits for its answer."""
+
+    def __init__(self, python: Path, engine: str) -> None:
+        self.python, self.engine = python, engine
+        self.hint = CADQUERY_INSTALL_HINT if engine == "cadquery" else "reinstall with `bash scripts/install.sh`"
+        env = dict(os.environ)
+        if engine == "cadquery":  # another venv: our PYTHONPATH/PYTHONHOME would leak this venv's OCP into it
+            env = {k: v for k, v in env.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+        # One thread in the runner, so that forking it is safe (no thread pool holds a lock at fork time).
+        env.update(OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+        self._stderr = tempfile.TemporaryFile()
         try:
-            proc = subprocess.run(command, capture_output=True, text=True, timeout=CADQUERY_TIMEOUT_S,
-                                  env=env, check=False)
-        except subprocess.TimeoutExpired:
-            raise SourceError(f"the cadquery script did not finish within {CADQUERY_TIMEOUT_S:.0f} s",
-                              field="script", hint="make the script faster, or check it for endless loops") from None
+            self.proc = subprocess.Popen([str(python), str(_RUNNER), "serve", engine], stdin=subprocess.PIPE,
+                                         stdout=subprocess.PIPE, stderr=self._stderr, env=env,
+                                         start_new_session=True, close_fds=True, bufsize=0)
         except OSError as exc:
-            raise SourceError(f"cannot start the cadquery runtime {python}: {exc.strerror}",
-                              field="script_engine", hint=CADQUERY_INSTALL_HINT) from None
-        if proc.returncode != 0:
-            raise _runner_error(proc.returncode, proc.stderr, python)
-        entries = _read_index(outdir / "index.json", python)
-        names = check_part_names([e.get("name") for e in entries], spec.script_function)
-        parts = {}
-        for name, entry in zip(names, entries):
-            vertices, faces = _read_stl(outdir / str(entry.get("file", "")), name, python)
-            parts[name] = vertices_to_part(vertices, faces, spec, name, "script")
-    warnings = [w for name, mesh in parts.items() for w in mesh_warnings(name, mesh)]
-    return parts, warnings
+            raise SourceError(f"cannot start the {engine} runtime {python}: {exc.strerror or exc}",
+                              field="script_engine", hint=self.hint) from None
+        ready = self._answer(RUNNER_START_TIMEOUT_S)
+        if not ready.get("ready"):
+            error = ready.get("error") or {}
+            self.close()
+            raise SourceError(str(error.get("message") or f"the {engine} runtime {python} did not start"),
+                              field="script_engine", hint=error.get("hint") or self.hint)
 
+    def alive(self) -> bool:
+        return self.proc.poll() is None
 
-def _runner_error(returncode: int, stderr: str, python: Path) -> SourceError:
-    """The runner's one-line JSON error (last such line on stderr) → SourceError."""
-    for line in reversed(stderr.strip().splitlines()):
+    def run(self, request: dict, timeout_s: float) -> dict:
         try:
-            report = json.loads(line)
+            self.proc.stdin.write((json.dumps(request) + "\n").encode())
+            self.proc.stdin.flush()
+        except OSError:
+            self.close()
+            raise SourceError(f"the {self.engine} script runner stopped unexpectedly", field="script_engine",
+                              hint=self.hint) from None
+        return self._answer(timeout_s + 30.0)
+
+    def _answer(self, timeout_s: float) -> dict:
+        """The runner's next JSON line; a dead or silent runner is closed and reported."""
+        ready, _, _ = select.select([self.proc.stdout], [], [], timeout_s)
+        line = self.proc.stdout.readline() if ready else b""
+        try:
+            answer = json.loads(line)
+            if isinstance(answer, dict):
+                return answer
         except ValueError:
-            continue  # OCP prints a harmless fontconfig warning on stderr, among other noise
-        if isinstance(report, dict) and "message" in report:
-            field = report.get("field") if report.get("field") in ("script", "script_function", "script_engine") \
-                else "script"
-            return SourceError(str(report["message"]), field=field, hint=report.get("hint") or None)
-    last = stderr.strip().splitlines()[-1] if stderr.strip() else "no error output"
-    return SourceError(f"the cadquery runtime {python} failed (exit code {returncode}): {last[:MAX_MESSAGE_CHARS]}",
-                       field="script_engine", hint=CADQUERY_INSTALL_HINT)
+            pass
+        self.close()
+        self._stderr.seek(0)
+        last = (self._stderr.read()[-2000:].decode("utf-8", "replace").strip().splitlines() or ["no output"])[-1]
+        raise SourceError(f"the {self.engine} runtime {self.python} failed: {last[:400]}", field="script_engine",
+                          hint=self.hint)
+
+    def close(self) -> None:
+        try:
+            self.proc.stdin.close()
+        except OSError:
+            pass
+        try:
+            self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            try:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+            self.proc.wait()
+        self._stderr.close()
 
 
-def _read_index(index_path: Path, python: Path) -> list[dict]:
+_RUNNERS: dict[tuple[str, str], _Runner] = {}
+_RUNNERS_LOCK = threading.Lock()
+
+
+def _runner(python: Path, engine: str) -> _Runner:
+    """The warm runner for (interpreter, engine), started on first use and again if it died."""
+    key = (str(python), engine)
+    with _RUNNERS_LOCK:
+        runner = _RUNNERS.get(key)
+        if runner is None or not runner.alive():
+            if runner is not None:
+                runner.close()
+            runner = _RUNNERS[key] = _Runner(python, engine)
+        return runner
+
+
+@atexit.register
+def close_runners() -> None:
+    """End every warm runner (at exit; tests may call it)."""
+    with _RUNNERS_LOCK:
+        for runner in _RUNNERS.values():
+            runner.close()
+        _RUNNERS.clear()
+
+
+# --------------------------------------------------------------------------- results
+
+
+def _read_result(outdir: Path, status: dict, spec: CadSource, python: Path) -> dict:
+    """``result.json`` of a run → its parts, or the SourceError that explains why there are none."""
+    function = spec.script_function
+    if status.get("timed_out"):
+        raise SourceError(f"the script did not finish within {spec.script_timeout_s:g} s (script_timeout_s); "
+                          "it was stopped", field="script",
+                          hint="make it faster, check it for endless loops, or raise script_timeout_s")
     try:
-        index = json.loads(index_path.read_text(encoding="utf-8"))
-        entries = index["parts"]
-        if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
-            raise ValueError("'parts' is not a list of objects")
+        result = json.loads((outdir / "result.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        result = None
+    if isinstance(result, dict) and isinstance(result.get("error"), dict):
+        error = result["error"]
+        field = error.get("field") if error.get("field") in ("script", "script_function", "script_engine") \
+            else "script"
+        return _raise(str(error.get("message")), field, error.get("hint") or None)
+    if isinstance(result, dict) and result.get("complete") is True and isinstance(result.get("parts"), list) \
+            and all(isinstance(e, dict) for e in result["parts"]):
+        return result
+    code, sig = status.get("exit"), status.get("signal")
+    if sig:
+        name = signal.Signals(sig).name if sig in signal.Signals._value2member_map_ else f"signal {sig}"
+        why = _SIGNALS.get(sig, "a signal")
+        hint = (f"the limit is script_memory_mb = {spec.script_memory_mb} MiB; make the script lighter or raise it"
+                if sig in (signal.SIGKILL, signal.SIGABRT) else _FIX)
+        return _raise(f"the script's process crashed before {function}() returned ({name}: {why})", "script", hint)
+    if code == 0:
+        return _raise(f"the script ended its own process (os._exit(0) or similar) before {function}() returned "
+                      "its parts, so nothing was built", "script",
+                      f"return the parts from {function}(); do not end the process")
+    return _raise(f"the script's process exited with status {code} before {function}() returned "
+                  "(os._exit, or a library that ended the process)", "script", _FIX)
+
+
+def _raise(message: str, field: str, hint: str | None):
+    raise SourceError(message, field=field, hint=hint)
+
+
+def _read_part(outdir: Path, entry: dict, name: str, python: Path) -> tuple[np.ndarray, np.ndarray]:
+    """A part file from the runner → ((V, 3) float64 vertices, (F, 3) int64 faces), script units."""
+    try:
+        count_v, count_f = int(entry["vertices"]), int(entry["faces"])
+        path = outdir / Path(str(entry["file"])).name
+        if path.stat().st_size != (count_v + count_f) * 24:
+            raise ValueError(f"{path.name} has {path.stat().st_size} bytes, not {(count_v + count_f) * 24}")
+        data = path.read_bytes()
+        vertices = np.frombuffer(data, dtype="<f8", count=count_v * 3).reshape(-1, 3).astype(np.float64)
+        faces = np.frombuffer(data, dtype="<i8", count=count_f * 3, offset=count_v * 24).reshape(-1, 3)
+        if faces.size and (faces.min() < 0 or faces.max() >= count_v):
+            raise ValueError("a face refers to a vertex that does not exist")
     except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise SourceError(f"the cadquery runtime {python} wrote no usable index.json ({exc})",
-                          field="script_engine", hint=CADQUERY_INSTALL_HINT) from None
-    return entries
-
-
-def _read_stl(stl_path: Path, name: str, python: Path):
-    """A binary STL from the runner → ((V, 3) float64 vertices, (F, 3) int64 faces), unmerged."""
-    import numpy as np
-
-    try:
-        data = stl_path.read_bytes()
-        count = int(np.frombuffer(data, dtype="<u4", count=1, offset=80)[0])
-        record = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attr", "<u2")])
-        tris = np.frombuffer(data, dtype=record, count=count, offset=84)
-    except (OSError, ValueError, IndexError) as exc:
-        raise SourceError(f"the cadquery runtime {python} wrote an unreadable mesh for part '{name}' ({exc})",
-                          field="script_engine", hint=CADQUERY_INSTALL_HINT) from None
-    vertices = tris["corners"].reshape(-1, 3).astype(np.float64)
-    faces = np.arange(len(vertices), dtype=np.int64).reshape(-1, 3)
-    return vertices, faces
+        raise SourceError(f"the script runner {python} wrote an unreadable mesh for part '{name}' ({exc})",
+                          field="script_engine", hint="reinstall decollage") from None
+    return vertices, faces.astype(np.int64)

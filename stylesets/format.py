@@ -51,7 +51,15 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from core.errors import DecollageError, VoxelizeError
-from core.files import code_digest, ensure_writable_dir, sha256_file, write_bytes_atomic
+from core.files import (
+    InputKind,
+    check_input_file,
+    code_digest,
+    ensure_writable_dir,
+    input_limit_bytes,
+    sha256_file,
+    write_bytes_atomic,
+)
 from core.recipe import FitMode, GridSettings
 from geometry.voxelize import voxelize
 from sources.base import PartMeshes
@@ -444,10 +452,25 @@ def load_set(path: Path) -> StyleSet:
                     inputs_hash=meta["inputs_hash"], exemplars=tuple(exemplars), path=path)
 
 
+def _check_unpacked(path: Path) -> None:
+    """Refuse a set whose arrays would unpack to more than the style-set size limit (a zip bomb)."""
+    limit = input_limit_bytes(InputKind.STYLE_SET)
+    try:
+        with zipfile.ZipFile(path) as archive:
+            unpacked = sum(info.file_size for info in archive.infolist())
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+        raise _refuse(path, f"the file is truncated or corrupt ({type(exc).__name__})") from None
+    if unpacked > limit:
+        raise _refuse(path, f"it unpacks to {unpacked / (1 << 20):,.0f} MB, more than the {limit / (1 << 20):g} MB "
+                            f"limit for style sets (raise it with {InputKind.STYLE_SET.env_var}=<MB>)")
+
+
 def _open(path: Path, with_labels: bool) -> tuple[dict, list[np.ndarray]]:
     if not path.is_file():
         raise ExemplarError(f"style set file not found: {path}", file=path,
                             hint="build it with 'decollage styles build <set>'")
+    check_input_file(path, InputKind.STYLE_SET, error=ExemplarError, file=path)  # no device, within its limit
+    _check_unpacked(path)
     try:
         with np.load(path, allow_pickle=False) as data:
             if "meta" not in data.files:

@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
 from core.errors import DecollageError, SourceError
-from core.files import code_digest
+from core.files import InputKind, code_digest, read_input_bytes
 from sources.mesh import read_named_parts, sanitize_name
 from stylesets.format import RESOLUTION, BuildResult, ExemplarError, ExemplarSpec, Vocabulary, build_set, set_path
 from stylesets.registry import BUILTIN_SETS
@@ -246,8 +246,8 @@ def _gltf_buffers(file: Path) -> list[Path]:
     if file.suffix.lower() != ".gltf":
         return []
     try:
-        data = json.loads(file.read_bytes())
-    except (OSError, ValueError, UnicodeDecodeError):
+        data = json.loads(read_input_bytes(file, InputKind.MESH))  # within the mesh size limit
+    except (DecollageError, OSError, ValueError, UnicodeDecodeError):
         return []
     out = []
     for buffer in data.get("buffers", []) if isinstance(data, dict) else []:

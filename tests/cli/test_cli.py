@@ -111,8 +111,18 @@ def _voxelizes_to_nothing(tmp_path: Path) -> str:
         "regions:", "grid: {fit: voxel_size, voxel_size_m: 1.0}\n    regions:")
 
 
+def test_garbage_font_is_refused_before_building(write_recipe, tmp_path):
+    """validate and the build's pre-flight read the font (to check that it covers the text): exit 2, nothing written."""
+    recipe = write_recipe(_garbage_font(tmp_path))
+    out = tmp_path / "out"
+    code, _, stderr = _run(["build", recipe, "-o", out])
+    assert code == 2, stderr
+    _assert_one_line_error(stderr, recipe, "assets[0].source.font")
+    assert not out.exists()
+    assert _run(["validate", recipe])[0] == 2
+
+
 ASSET_FAILURES = {  # exit 1: the asset fails, is in the manifest as failed, leaves no file
-    "garbage font": (_garbage_font, "assets[0].source.font"),
     "corrupt mesh": (_corrupt_mesh, "assets[0].source.path"),
     "mesh with no faces": (_faceless_mesh, "assets[0].source.path"),
     "voxelizes to nothing": (_voxelizes_to_nothing, "assets[0]"),
