@@ -14,7 +14,8 @@ survives the old behaviour) or ``--timeout-s`` (default 60): the table then
 says ``killed: RSS cap`` or ``killed: timeout`` instead of an exit code.
 
 The table is printed as Markdown (one row per case: id, exit, time, peak RSS,
-stderr lines, the last stderr line, shortened).
+stderr lines, and the first ``error:``/``failed`` line of stderr, else its last
+line, shortened).
 """
 
 from __future__ import annotations
@@ -358,6 +359,9 @@ def run_case(case: Case, code: Path, timeout_s: float, rss_cap_mb: float) -> dic
         except ProcessLookupError:
             pass
         lines = [ln for ln in stderr_path.read_text(encoding="utf-8", errors="replace").splitlines() if ln.strip()]
+        # The line that says what went wrong: the first error or failed asset, else the last line.
+        message = next((ln for ln in lines if ln.startswith(("error:", "failed ", "internal error"))),
+                       lines[-1] if lines else "")
         out_dir = folder / "out"
         files = sorted(str(p.relative_to(out_dir)) for p in out_dir.rglob("*") if p.is_file()) \
             if out_dir.is_dir() else []
@@ -367,7 +371,7 @@ def run_case(case: Case, code: Path, timeout_s: float, rss_cap_mb: float) -> dic
         return {
             "id": case.id, "what": case.what, "expect": case.expect,
             "exit": outcome or popen.returncode, "time_s": round(wall, 2), "peak_rss_mb": round(peak / 2**20),
-            "stderr_lines": len(lines), "last_line": lines[-1] if lines else "", "out_files": files,
+            "stderr_lines": len(lines), "message": message, "out_files": files,
         }
 
 
@@ -392,10 +396,10 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(result, ensure_ascii=False), file=sys.stderr, flush=True)
     machine = f"{platform.machine()}, {os.cpu_count()} cores, {psutil.virtual_memory().total / 2**30:.0f} GiB"
     print(f"code: {args.code.resolve()}  machine: {machine}\n")
-    print("| case | exit | time (s) | peak RSS (MB) | stderr lines | last stderr line |")
+    print("| case | exit | time (s) | peak RSS (MB) | stderr lines | message (first error line, else last line) |")
     print("|---|---|---|---|---|---|")
     for r in results:
-        last = r["last_line"].replace("|", "\\|")
+        last = r["message"].replace("|", "\\|")
         last = last if len(last) <= 140 else last[:139] + "…"
         print(f"| {r['id']} | {r['exit']} | {r['time_s']} | {r['peak_rss_mb']} | {r['stderr_lines']} | {last} |")
     if args.json:

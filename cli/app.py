@@ -12,10 +12,11 @@ from __future__ import annotations
 import sys
 
 import typer
+from typer.exceptions import TyperException
 
 from cli.bench import bench_command
 from cli.build import build_command
-from cli.console import ExitCode, stderr
+from cli.console import ExitCode, literal, stderr
 from cli.eval import eval_command
 from cli.paint import paint_command
 from cli.schema import schema_command, version_command
@@ -42,21 +43,50 @@ app.command("paint")(paint_command)
 app.add_typer(styles_app, name="styles")
 
 
-def main() -> None:
-    """Console-script entry point; turns unexpected exceptions into exit code 3."""
+_COMMAND = None
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console-script entry point: usage errors as one line (exit 2), unexpected exceptions as exit code 3.
+
+    ``argv`` defaults to ``sys.argv[1:]``. Always ends with ``SystemExit`` carrying the exit code.
+    """
+    global _COMMAND
+    if _COMMAND is None:  # typer builds the click command once per process (tests call main many times)
+        _COMMAND = typer.main.get_command(app)
+    debug = "--debug" in (sys.argv[1:] if argv is None else argv)
     try:
-        app()
+        code = _COMMAND.main(args=argv, standalone_mode=False, prog_name="decollage")
+        sys.exit(code if isinstance(code, int) else 0)
     except SystemExit:
         raise
-    except KeyboardInterrupt:
+    except TyperException as exc:  # the command line itself is wrong (click's usage errors, vendored by typer)
+        sys.exit(_usage_error(exc))
+    except (KeyboardInterrupt, typer.Abort):  # click turns Ctrl-C into Abort outside standalone mode
         stderr().print("interrupted")
         sys.exit(ExitCode.INTERRUPTED)
     except Exception as exc:  # a bug: say so briefly, no traceback unless asked
-        if "--debug" in sys.argv:
+        if debug:
             raise
         stderr().print(f"internal error: {type(exc).__name__}: {exc} (run with --debug for the traceback)",
                         markup=False)
         sys.exit(ExitCode.INTERNAL)
+
+
+def _usage_error(exc: TyperException) -> int:
+    """Print a usage error as ``error: <command>: <option>: <message> (see <command> --help)``; its exit code."""
+    ctx = getattr(exc, "ctx", None)
+    if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
+        typer.echo(ctx.get_help())
+        return ExitCode.INVALID
+    command = ctx.command_path if ctx is not None else "decollage"
+    param = getattr(exc, "param", None)
+    option = "/".join(param.opts) if param is not None and getattr(param, "opts", None) else ""
+    message = " ".join(str(exc.format_message() if hasattr(exc, "format_message") else exc).split())
+    where = ": ".join(p for p in (command, option) if p)
+    stderr().print(f"[bold red]error:[/] {literal(where)}: {literal(message)} (see {literal(command)} --help)")
+    code = getattr(exc, "exit_code", ExitCode.INVALID)
+    return code if isinstance(code, int) and code else ExitCode.INVALID
 
 
 if __name__ == "__main__":

@@ -344,7 +344,7 @@ def check_input_file(path: str | Path, kind: InputKind, *, error: type[Decollage
     limit = input_limit_bytes(kind)
     if info.st_size > limit:
         raise error(f"the {noun} file {path} is {_describe_size(info.st_size)}, more than the "
-                    f"{limit / (1 << 20):g} MB limit for {noun} files", file=file, field=field,
+                    f"{limit / (1 << 20):.4g} MB limit for {noun} files", file=file, field=field,
                     hint=f"use a smaller file, or raise the limit with {kind.env_var}=<MB>")
     if not os.access(path, os.R_OK):
         raise error(f"cannot read the {noun} file {path}: permission denied", file=file, field=field,
@@ -368,7 +368,7 @@ def read_input_bytes(path: str | Path, kind: InputKind, *, error: type[Decollage
         raise error(f"cannot read the {kind.value} file {path}: {exc.strerror or exc}", file=file,
                     field=field) from None
     if len(data) > limit:
-        raise error(f"the {kind.value} file {path} is larger than the {limit / (1 << 20):g} MB limit for "
+        raise error(f"the {kind.value} file {path} is larger than the {limit / (1 << 20):.4g} MB limit for "
                     f"{kind.value} files", file=file, field=field,
                     hint=f"use a smaller file, or raise the limit with {kind.env_var}=<MB>")
     return data

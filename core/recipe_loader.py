@@ -139,6 +139,9 @@ def _parse(text: str, path: Path, max_assets: int | None) -> Recipe:
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        context = getattr(exc, "context", None)
+        if context and context.startswith("expected"):  # "expected a single document..., but found another"
+            problem = f"{context}, {problem}"
         raise RecipeError(f"not valid YAML: {problem}", file=path, field=where,
                           hint="check indentation, colons and quotes") from None
     if data is None:

@@ -27,10 +27,10 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from core.budget import check_asset_memory
+from core.budget import check_asset_memory, memory_budget_bytes
 from core.capture import captured_warnings
 from core.detailizer import effective_checkpoint, get_detailizer
-from core.errors import DecollageError, RecipeError
+from core.errors import DecollageError, RecipeError, UsageError
 from core.files import InputKind, check_input_file, check_output_folder, ensure_writable_dir, sha256_file
 from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset
 from core.recipe_loader import LoadedRecipe, parse_recipe
@@ -108,10 +108,14 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
                 checked[key] = None
                 try:
                     preflight_source(asset.source, loaded.base_dir)
+                except UsageError:
+                    raise  # e.g. an unusable DECOLLAGE_MAX_*_MB: not the recipe's fault
                 except DecollageError as exc:
                     checked[key] = exc
             if checked[key] is not None:
                 raise checked[key]
+        except UsageError:
+            raise
         except DecollageError as exc:
             message = exc.message if exc.message.endswith(suffix) else exc.message + suffix
             raise RecipeError(message, file=loaded.path, field=f"{where}.source.{exc.field or ''}".rstrip("."),
@@ -124,7 +128,8 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
             det = get_detailizer(name, checkpoint, asset.detailize.device)
         except DecollageError as exc:
             message = f"{exc.file}: {exc.message}" if exc.file else exc.message
-            raise RecipeError(message, file=loaded.path, field=f"{where}.detailize.detailizer",
+            about = "checkpoint" if checkpoint and exc.file == checkpoint else "detailizer"
+            raise RecipeError(message, file=loaded.path, field=f"{where}.detailize.{about}",
                               hint=exc.hint) from None
         for r, rule in enumerate(asset.regions):
             for attr, vocab in (("style", det.style_names), ("part", det.part_names)):
@@ -144,6 +149,7 @@ def check_output(out_dir: Path) -> None:
     Writes nothing (``core.files.check_output_folder``).
     """
     check_output_folder(out_dir, folders=(RECORD_DIR,), files=(MANIFEST_NAME,))
+    memory_budget_bytes()  # an unusable DECOLLAGE_MEMORY_BUDGET_GB is a usage error now, not an asset error later
 
 
 def plan_build(loaded: LoadedRecipe, out_dir: Path, detailizer_override: str | None = None,

@@ -191,7 +191,7 @@ class _Runner:
     """One warm ``script_runner.py serve ENGINE`` process; ``run`` sends a request and waits for its answer."""
 
     def __init__(self, python: Path, engine: str) -> None:
-        self.python, self.engine = python, engine
+        self.python, self.engine, self.owner = python, engine, os.getpid()
         self.hint = CADQUERY_INSTALL_HINT if engine == "cadquery" else "reinstall with `bash scripts/install.sh`"
         env = dict(os.environ)
         if engine == "cadquery":  # another venv: our PYTHONPATH/PYTHONHOME would leak this venv's OCP into it
@@ -214,7 +214,8 @@ class _Runner:
                               field="script_engine", hint=error.get("hint") or self.hint)
 
     def alive(self) -> bool:
-        return self.proc.poll() is None
+        """Running, and started by this process (a forked process must not share another's runner)."""
+        return self.owner == os.getpid() and self.proc.poll() is None
 
     def run(self, request: dict, timeout_s: float) -> dict:
         try:
@@ -268,7 +269,7 @@ def _runner(python: Path, engine: str) -> _Runner:
     with _RUNNERS_LOCK:
         runner = _RUNNERS.get(key)
         if runner is None or not runner.alive():
-            if runner is not None:
+            if runner is not None and runner.owner == os.getpid():
                 runner.close()
             runner = _RUNNERS[key] = _Runner(python, engine)
         return runner
@@ -279,7 +280,8 @@ def close_runners() -> None:
     """End every warm runner (at exit; tests may call it)."""
     with _RUNNERS_LOCK:
         for runner in _RUNNERS.values():
-            runner.close()
+            if runner.owner == os.getpid():
+                runner.close()
         _RUNNERS.clear()
 
 

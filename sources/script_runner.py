@@ -156,10 +156,12 @@ def _limit_resources(memory_mb: int) -> None:
 
     with open("/proc/self/statm") as handle:  # first field: the address space's size in pages
         current = int(handle.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
-    limit = current + memory_mb * (1 << 20)
-    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
-    resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
-    resource.setrlimit(resource.RLIMIT_FSIZE, (MAX_FILE_BYTES, MAX_FILE_BYTES))
+    for kind, wanted in ((resource.RLIMIT_AS, current + memory_mb * (1 << 20)), (resource.RLIMIT_CORE, 0),
+                         (resource.RLIMIT_FSIZE, MAX_FILE_BYTES)):
+        _, hard = resource.getrlimit(kind)
+        if hard != resource.RLIM_INFINITY:  # never above a limit set by whoever started the build
+            wanted = min(wanted, hard)
+        resource.setrlimit(kind, (wanted, wanted))
 
 
 def _redirect_output(path: Path) -> None:

@@ -270,8 +270,22 @@ def _legacy_kerning(font) -> dict[tuple[str, str], int]:
 def preflight(spec: TextSource, base_dir: Path) -> None:
     """Checks before building: the font exists and is readable within its size limit, and covers the text
     (layout included: shaping, direction), without building any glyph."""
-    font = _Font(_resolve_font(spec.font, base_dir), [])
+    font = _cached_font(_resolve_font(spec.font, base_dir))
     _layout(_choose_text(spec.text, font.cmap), font, spec)
+
+
+_FONTS: dict[tuple, _Font] = {}
+
+
+def _cached_font(path: Path) -> _Font:
+    """``_Font(path)``, kept per (path, size, mtime) for the checks of a batch (at most 8 fonts)."""
+    info = path.stat()
+    key = (str(path), info.st_size, info.st_mtime_ns)
+    if key not in _FONTS:
+        if len(_FONTS) >= 8:
+            _FONTS.pop(next(iter(_FONTS)))
+        _FONTS[key] = _Font(path, [])
+    return _FONTS[key]
 
 
 def _resolve_font(font: str | None, base_dir: Path) -> Path:

@@ -50,7 +50,14 @@ MAX_ARRAYS: int = 16
 
 def preflight(spec: VoxelsSource, base_dir: Path) -> None:
     """Checks before building: a regular file within the size limit whose array headers are sound (nothing loaded)."""
-    inspect_arrays(_resolve(spec.path, base_dir))
+    headers = inspect_arrays(_resolve(spec.path, base_dir))
+    if "occupancy" not in headers:
+        raise SourceError(f"the .npz has no 'occupancy' array (found: {', '.join(sorted(headers)) or 'none'})",
+                          field="path", hint="save the 3-D occupancy under the key 'occupancy'")
+    shape = headers["occupancy"][0]
+    if len(shape) != 3:
+        raise SourceError(f"the occupancy must be 3-D (x, y, z), got {len(shape)}-D with shape {shape}",
+                          field="path", hint="save a 3-D array indexed [x, y, z]")
 
 
 def load(spec: VoxelsSource, base_dir: Path) -> PartVoxels:
@@ -132,7 +139,7 @@ def inspect_arrays(path: Path) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
     total = sum(math.prod(shape) * dtype.itemsize for shape, dtype in headers.values())
     if total > limit:
         raise SourceError(f"the arrays hold {total / (1 << 20):,.1f} MB once decompressed, more than the "
-                          f"{limit / (1 << 20):g} MB limit for voxels files", field="path",
+                          f"{limit / (1 << 20):.4g} MB limit for voxels files", field="path",
                           hint=f"use a smaller grid, or raise the limit with {InputKind.VOXELS.env_var}=<MB>")
     return headers
 
@@ -161,7 +168,7 @@ def _npz_headers(handle: BinaryIO, path: Path, limit: int) -> dict[str, tuple[tu
             unpacked = sum(info.file_size for info in members)
             if unpacked > limit:
                 raise SourceError(f"the .npz unpacks to {unpacked / (1 << 20):,.1f} MB, more than the "
-                                  f"{limit / (1 << 20):g} MB limit for voxels files", field="path",
+                                  f"{limit / (1 << 20):.4g} MB limit for voxels files", field="path",
                                   hint=f"use a smaller grid, or raise the limit with {InputKind.VOXELS.env_var}=<MB>")
             headers = {}
             for info in members:

@@ -461,12 +461,12 @@ def _check_unpacked(path: Path) -> None:
     except (zipfile.BadZipFile, OSError, EOFError) as exc:
         raise _refuse(path, f"the file is truncated or corrupt ({type(exc).__name__})") from None
     if unpacked > limit:
-        raise _refuse(path, f"it unpacks to {unpacked / (1 << 20):,.0f} MB, more than the {limit / (1 << 20):g} MB "
+        raise _refuse(path, f"it unpacks to {unpacked / (1 << 20):,.0f} MB, more than the {limit / (1 << 20):.4g} MB "
                             f"limit for style sets (raise it with {InputKind.STYLE_SET.env_var}=<MB>)")
 
 
 def _open(path: Path, with_labels: bool) -> tuple[dict, list[np.ndarray]]:
-    if not path.is_file():
+    if not path.exists():
         raise ExemplarError(f"style set file not found: {path}", file=path,
                             hint="build it with 'decollage styles build <set>'")
     check_input_file(path, InputKind.STYLE_SET, error=ExemplarError, file=path)  # no device, within its limit

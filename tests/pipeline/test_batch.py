@@ -11,6 +11,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -124,7 +125,8 @@ def test_jobs_give_byte_identical_outputs(batch, tmp_path):
 
 def test_fail_fast_stops_after_the_first_failure(batch, tmp_path):
     batch.write_text(batch.read_text().replace("shroom.npz", "broken.npz"))
-    (tmp_path / "broken.npz").write_bytes(b"not numpy")
+    # An empty grid passes the pre-flight checks (a readable file) and fails its asset while building.
+    np.savez(tmp_path / "broken.npz", occupancy=np.zeros((4, 4, 4), dtype=np.uint8))
     result = _cli("build", batch, "-o", tmp_path / "out", "--fail-fast", "--json")
     assert result.exit_code == 1
     summary = json.loads(result.stdout)
