@@ -11,7 +11,7 @@ being printed; on leaving, one line per distinct warning is appended to ``notes`
     trimesh warned: face normals didn't match (log)
 
 The library is named by the top-level package of the file or logger that
-warned. Lines are in first-seen order, messages are cut to one line of at most
+warned (a warning numpy raises on behalf of its caller names the caller). Lines are in first-seen order, messages are cut to one line of at most
 ``MAX_NOTE_CHARS`` characters, and at most ``MAX_NOTES`` distinct warnings are
 listed (then one line says how many more kinds there were).
 Warnings raised by the project's own packages are reported the same way.
@@ -33,15 +33,23 @@ MAX_NOTE_CHARS: int = 200
 MAX_NOTES: int = 20
 
 
+_PROJECT_ROOT = Path(__file__).resolve().parents[1]
+
+
 def _library_of_file(filename: str) -> str:
-    """``.../site-packages/numpy/core/x.py`` → ``numpy``; a file outside site-packages → its stem's folder."""
-    parts = Path(filename).parts
+    """``.../site-packages/numpy/core/x.py`` → ``numpy``; this project's ``pipeline/mesh.py`` → ``decollage
+    (pipeline/mesh.py)``; anything else → the file's name."""
+    path = Path(filename)
+    parts = path.parts
     for marker in ("site-packages", "dist-packages"):
         if marker in parts:
             index = parts.index(marker)
             if index + 1 < len(parts):
                 return parts[index + 1].removesuffix(".py").split("-")[0]
-    return Path(filename).parent.name or Path(filename).stem or "python"
+    try:
+        return f"decollage ({path.resolve().relative_to(_PROJECT_ROOT).as_posix()})"
+    except (ValueError, OSError):
+        return path.name or "python"
 
 
 def _one_line(text: str) -> str:

@@ -71,6 +71,8 @@ def transform_mesh(mesh: "trimesh.Trimesh", up: UpAxis | str, scale: float) -> "
     return out
 
 
+_DEGENERATE_HINT = "check the source's units and scale, and its coordinates in a mesh viewer"
+
 #: Smallest and largest extent (longest side, metres) a part may have in the canonical frame; outside
 #: this range the part is degenerate (it collapses to a point, or float32 outputs lose it).
 EXTENT_RANGE_M: tuple[float, float] = (1e-6, 1e6)
@@ -84,22 +86,33 @@ def check_part_geometry(mesh: "trimesh.Trimesh", name: str, field: str) -> None:
     longest side squared). Raises ``SourceError`` at ``field`` naming the part.
     """
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    hint = "check the source's units and scale, and its coordinates in a mesh viewer"
-    if vertices.size == 0 or not np.all(np.isfinite(vertices)):
-        raise SourceError(f"part '{name}' has coordinates that are not finite once scaled to metres", field=field,
-                          hint=hint)
-    extent = float((vertices.max(axis=0) - vertices.min(axis=0)).max())
-    low, high = EXTENT_RANGE_M
-    if not low <= extent <= high:
-        what = "too small: it collapses to a point" if extent < low else "too large"
-        raise SourceError(f"part '{name}' is {extent:.3g} m across once scaled to metres, {what} "
-                          f"(parts must be {low:g} m to {high:g} m across)", field=field, hint=hint)
+    extent = check_extent(vertices, 1.0, name, field)
     with np.errstate(all="ignore"):
         corners = vertices[np.asarray(mesh.faces, dtype=np.int64)]
         areas = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
     if not np.any(areas > 2e-12 * extent * extent):
         raise SourceError(f"every face of part '{name}' has collapsed (zero area) once scaled to metres",
-                          field=field, hint=hint)
+                          field=field, hint=_DEGENERATE_HINT)
+
+
+def check_extent(vertices: np.ndarray, scale: float, name: str, field: str) -> float:
+    """The longest side (metres) of (N, 3) ``vertices`` × ``scale``; SourceError when not finite or out of range.
+
+    Cheap enough to run on a file's raw coordinates before any cleaning (which itself
+    misbehaves on coordinates like 1e30).
+    """
+    with np.errstate(all="ignore"):
+        points = np.asarray(vertices, dtype=np.float64) * float(scale)
+        if points.size == 0 or not np.all(np.isfinite(points)):
+            raise SourceError(f"part '{name}' has coordinates that are not finite once scaled to metres",
+                              field=field, hint=_DEGENERATE_HINT)
+        extent = float((points.max(axis=0) - points.min(axis=0)).max())
+    low, high = EXTENT_RANGE_M
+    if not low <= extent <= high:
+        what = "too small: it collapses to a point" if extent < low else "too large"
+        raise SourceError(f"part '{name}' is {extent:.3g} m across once scaled to metres, {what} "
+                          f"(parts must be {low:g} m to {high:g} m across)", field=field, hint=_DEGENERATE_HINT)
+    return extent
 
 
 #: Alias under the name used in the architecture notes.

@@ -43,7 +43,7 @@ from core.errors import SourceError
 from core.files import InputKind, check_input_file, input_file
 from core.recipe import MeshSource, PartsFrom, UpAxis
 from sources.base import PartMeshes
-from sources.frames import check_part_geometry, transform_mesh
+from sources.frames import check_extent, check_part_geometry, transform_mesh
 
 if TYPE_CHECKING:
     import trimesh
@@ -71,6 +71,8 @@ def load(spec: MeshSource, base_dir: Path) -> PartMeshes:
     warnings: list[str] = []
     for original, mesh in sorted(raw, key=lambda item: item[0]):
         name = unique_name(sanitize_name(original), parts)
+        if len(mesh.vertices) and np.all(np.isfinite(mesh.vertices)):  # NaN is _clean's to report
+            check_extent(mesh.vertices, scale, name, "path")  # before cleaning, which breaks on huge numbers
         cleaned = _clean(mesh, name)
         parts[name] = transform_mesh(cleaned, spec.up_axis, scale)
         check_part_geometry(parts[name], name, "path")

@@ -25,7 +25,8 @@ closed and stdout/stderr going to ``OUTDIR/output.txt``, and answers one line::
 
 after the child ended, or after S seconds (then the child's whole process group
 is killed). Whatever the child left running is killed too. The server ends when
-stdin closes. ``python script_runner.py run ENGINE REQUEST_JSON`` runs one
+stdin closes, or, while a script runs, when the process that started it is
+gone (the script's group is killed first). ``python script_runner.py run ENGINE REQUEST_JSON`` runs one
 request in the current process instead (no fork; for platforms without it and
 for debugging).
 
@@ -84,8 +85,15 @@ class RunnerError(Exception):
 # --------------------------------------------------------------------------- the server
 
 
+_PARENT = os.getppid()
+
+
 def serve(engine: str) -> int:
-    """Import the engine, then fork one child per request line on stdin (see the module docstring)."""
+    """Import the engine, then fork one child per request line on stdin (see the module docstring).
+
+    The server ends when stdin closes, or while a script runs as soon as the process that started it is gone
+    (then the script's process group is killed first).
+    """
     try:
         _import_engine(engine)
     except RunnerError as err:
@@ -130,6 +138,9 @@ def _fork_and_wait(engine: str, request: dict) -> dict:
         done, status, usage = os.wait4(pid, os.WNOHANG)
         if done:
             break
+        if os.getppid() != _PARENT:  # the build that started this runner is gone: stop its script, and leave
+            _kill_group(pid)
+            os._exit(1)
         if time.monotonic() > deadline:
             timed_out = True
             _kill_group(pid)

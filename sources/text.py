@@ -270,8 +270,18 @@ def _legacy_kerning(font) -> dict[tuple[str, str], int]:
 def preflight(spec: TextSource, base_dir: Path) -> None:
     """Checks before building: the font exists and is readable within its size limit, and covers the text
     (layout included: shaping, direction), without building any glyph."""
+    layout(spec, base_dir)
+
+
+def layout(spec: TextSource, base_dir: Path) -> list[tuple[str, str, float, float]]:
+    """The text laid out, without building solids: ``(character, glyph name, x, y)`` per glyph, in reading
+    order, pen origins in em (x to the right, y up; the first baseline at 0). Whitespace is included.
+
+    Raises SourceError like ``load`` (font, missing glyphs, mixed directions).
+    """
     font = _cached_font(_resolve_font(spec.font, base_dir))
-    _layout(_choose_text(spec.text, font.cmap), font, spec)
+    em = float(font.units_per_em)
+    return [(p.char, p.glyph, p.x / em, p.y / em) for p in _layout(_choose_text(spec.text, font.cmap), font, spec)]
 
 
 _FONTS: dict[tuple, _Font] = {}

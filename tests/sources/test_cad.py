@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import sys
 import textwrap
 from pathlib import Path
@@ -332,3 +333,95 @@ def test_cadquery_script_error_has_the_same_wording(tmp_path):
         load_script(path, script_engine="cadquery")
     assert info.value.field == "script"
     assert info.value.message == "script raised RuntimeError: no lid (line 4 of tower.py)"
+
+
+# --------------------------------------------------------------------------- isolation of scripts
+
+
+def test_scripts_never_run_in_the_build_process(tmp_path):
+    path = script_file(tmp_path, """
+        import os, pathlib
+        from build123d import Box
+        def build():
+            pathlib.Path(__file__).with_name("pid.txt").write_text(str(os.getpid()))
+            return Box(1, 1, 1)
+        """)
+    load_script(path)
+    assert int((tmp_path / "pid.txt").read_text()) != os.getpid()  # another process ran it
+    assert "decollage_script" not in sys.modules
+
+
+@pytest.mark.parametrize("body, fields, words", [
+    ("os._exit(0)", {}, "ended its own process (os._exit(0) or similar) before build() returned"),
+    ("os._exit(3)", {}, "exited with status 3 before build() returned"),
+    ("sys.exit(0)", {}, "script raised SystemExit: 0 (line 6 of tower.py)"),
+    ("while True:\n        pass", {"script_timeout_s": 1}, "did not finish within 1 s (script_timeout_s)"),
+    ("keep = [bytearray(32 << 20) for _ in range(100)]", {"script_memory_mb": 64},
+     "ran out of memory (script_memory_mb = 64 MiB"),
+    ("import ctypes; ctypes.string_at(0)", {}, "crashed before build() returned (SIGSEGV"),
+])
+def test_a_script_that_ends_crashes_loops_or_eats_memory_fails_its_asset(tmp_path, body, fields, words):
+    path = script_file(tmp_path, "import os, sys\nfrom build123d import Box\n\n\ndef build():\n    " + body + "\n")
+    with pytest.raises(SourceError) as info:
+        load_script(path, **fields)
+    assert info.value.field == "script" and words in info.value.message, info.value.message
+    # the warm runner survives any of these: the next script runs as usual
+    ok = script_file(tmp_path, "from build123d import Box\ndef build():\n    return Box(1, 2, 3)\n", name="ok.py")
+    assert list(load_script(ok).parts) == ["ok"]
+
+
+def test_local_modules_a_script_imports_join_its_input_files(tmp_path):
+    (tmp_path / "helpers").mkdir()
+    (tmp_path / "helpers" / "__init__.py").write_text("")
+    (tmp_path / "helpers" / "sizes.py").write_text("WIDTH = 3\n")
+    (tmp_path / "shapes.py").write_text("from build123d import Box\ndef box(w):\n    return Box(w, 1, 1)\n")
+    path = script_file(tmp_path, """
+        import json  # the standard library is not a local module
+        import shapes
+        from helpers.sizes import WIDTH
+        def build():
+            return shapes.box(WIDTH)
+        """)
+    pm = load_script(path)
+    assert pm.input_files == [path.resolve(), *sorted(p.resolve() for p in (
+        tmp_path / "helpers" / "__init__.py", tmp_path / "helpers" / "sizes.py", tmp_path / "shapes.py"))]
+    np.testing.assert_allclose(pm.parts["tower"].extents, [3, 1, 1])
+
+
+def test_what_a_script_starts_is_stopped_and_what_it_prints_stays_out(tmp_path, capfd):
+    marker = tmp_path / "alive"
+    path = script_file(tmp_path, f"""
+        import subprocess, sys
+        from build123d import Box
+        def build():
+            print("noise from the script")
+            subprocess.Popen([sys.executable, "-c", "import time, pathlib; time.sleep(2); "
+                              "pathlib.Path({str(marker)!r}).write_text('x')"])
+            return Box(1, 1, 1)
+        """)
+    load_script(path)
+    import time
+
+    time.sleep(3)
+    assert not marker.exists()  # the script's child was killed with its process group
+    assert "noise from the script" not in capfd.readouterr().out
+
+
+def test_validate_and_list_never_run_a_script(tmp_path):
+    path = script_file(tmp_path, "open(__file__ + '.ran', 'w').close()\ndef build():\n    pass\n")
+    cad.preflight(spec(script=path.name), tmp_path)
+    assert not (tmp_path / "tower.py.ran").exists()
+    (tmp_path / "notes.txt").write_text("x")
+    with pytest.raises(SourceError, match=".py file"):
+        cad.preflight(spec(script="notes.txt"), tmp_path)
+
+
+def test_a_deep_boolean_tree_is_built_without_recursion():
+    from core.recipe import BooleanShape, BoxShape
+
+    node = BoxShape(shape="box", size=(1, 2, 3))
+    for _ in range(3000):  # far deeper than the schema allows (MAX_CAD_DEPTH), to prove the walk is iterative
+        node = BooleanShape.model_construct(shape="union", children=[node], name=None, at=(0, 0, 0),
+                                            rotate_deg=(0, 0, 0))
+    shape = cad.build_node(node, "parts[0]")
+    assert shape.bounding_box().size.Z == pytest.approx(3)

@@ -203,3 +203,31 @@ def test_only_degenerate_faces_is_an_error(tmp_path):
 def test_nan_vertices_are_an_error(tmp_path):
     (tmp_path / "nan.obj").write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n")
     assert "NaN or infinite" in _error(_spec("nan.obj"), tmp_path).message
+
+
+@pytest.mark.parametrize("size, scale, words", [
+    (1e30, 1.0, "too large"),
+    (1.0, 1e7, "too large"),
+    (1e-7, 1.0, "collapses to a point"),
+])
+def test_parts_degenerate_after_scaling_are_errors(tmp_path, size, scale, words):
+    path = tmp_path / "box.stl"
+    _box((size, size, size)).export(path)
+    from core.recipe import LengthUnit, PartsFrom, UpAxis
+
+    spec = MeshSource.model_construct(kind="mesh", path=str(path), up_axis=UpAxis.Y, units=LengthUnit.M, scale=scale,
+                                      parts_from=PartsFrom.NODES)  # past the schema's range, to reach the check
+    err = _error(spec, tmp_path)
+    assert words in err.message and "'box'" in err.message
+
+
+def test_devices_pipes_and_oversized_files_are_refused_before_reading(tmp_path, monkeypatch):
+    import os
+
+    assert "character device" in _error(_spec("/dev/zero"), tmp_path).message
+    os.mkfifo(tmp_path / "pipe.obj")
+    assert "named pipe" in _error(_spec("pipe.obj"), tmp_path).message
+    _box().export(tmp_path / "box.stl")
+    monkeypatch.setenv("DECOLLAGE_MAX_MESH_MB", "0.0001")
+    err = _error(_spec("box.stl"), tmp_path)
+    assert "limit for mesh files" in err.message and "DECOLLAGE_MAX_MESH_MB" in err.hint

@@ -194,3 +194,48 @@ def test_bad_names_array(tmp_path):
 def test_all_empty_grid(tmp_path):
     np.save(tmp_path / "empty.npy", np.zeros((3, 3, 3)))
     assert "empty" in _error(_spec("empty.npy"), tmp_path).message
+
+
+def _npz_with(path: Path, members: dict[str, bytes]) -> None:
+    import zipfile
+
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, data in members.items():
+            archive.writestr(name, data)
+
+
+def _npy(array: np.ndarray) -> bytes:
+    import io
+
+    buffer = io.BytesIO()
+    np.save(buffer, array, allow_pickle=True)
+    return buffer.getvalue()
+
+
+def test_headers_are_checked_before_any_array_is_loaded(tmp_path, monkeypatch):
+    from sources.voxels import inspect_arrays
+
+    _npz_with(tmp_path / "bomb.npz", {"occupancy.npy": _npy(np.zeros((64, 128, 128), np.uint8))})
+    assert inspect_arrays(tmp_path / "bomb.npz") == {"occupancy": ((64, 128, 128), np.dtype(np.uint8))}
+    monkeypatch.setenv("DECOLLAGE_MAX_VOXELS_MB", "0.5")
+    assert "unpacks to 1.0 MB, more than the 0.5 MB limit" in _error(_spec("bomb.npz"), tmp_path).message
+    monkeypatch.delenv("DECOLLAGE_MAX_VOXELS_MB")
+    header = _npy(np.zeros((2, 2, 2), np.uint8))
+    lying = header.replace(b"(2, 2, 2), }", b"(4096, 4096, 4096)}")  # same length: only the claim changes
+    (tmp_path / "lie.npy").write_bytes(lying)
+    assert "MB limit for voxels files" in _error(_spec("lie.npy"), tmp_path).message
+    _npz_with(tmp_path / "obj.npz", {"occupancy.npy": _npy(np.array([None, 1], dtype=object))})
+    assert "Python objects" in _error(_spec("obj.npz"), tmp_path).message
+    _npz_with(tmp_path / "many.npz", {f"a{i}.npy": _npy(np.zeros(1)) for i in range(20)})
+    assert "more than 16" in _error(_spec("many.npz"), tmp_path).message
+
+
+def test_preflight_checks_rank_and_presence_without_loading(tmp_path):
+    from sources.voxels import preflight
+
+    np.save(tmp_path / "flat.npy", np.ones((3, 3), np.uint8))
+    with pytest.raises(SourceError, match="must be 3-D"):
+        preflight(_spec("flat.npy"), tmp_path)
+    np.savez(tmp_path / "nothing.npz", part=np.ones((2, 2, 2), np.int16))
+    with pytest.raises(SourceError, match="no 'occupancy'"):
+        preflight(_spec("nothing.npz"), tmp_path)
