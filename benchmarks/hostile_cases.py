@@ -2,6 +2,7 @@
 
 Run from the repository root:
     .venv/bin/python benchmarks/hostile_cases.py [--code DIR] [--json OUT.json] [--only ID ...]
+    .venv/bin/python benchmarks/hostile_cases.py compare BEFORE.json[,MORE.json] AFTER.json   # the two side by side
 
 Each case is made in a fresh temporary folder and run as the real CLI in a
 fresh process (``python -c "from cli.app import main; main()" ...``) with the
@@ -325,7 +326,8 @@ def run_case(case: Case, code: Path, timeout_s: float, rss_cap_mb: float) -> dic
     with tempfile.TemporaryDirectory(prefix=f"hostile-{case.id}-") as tmp:
         folder = Path(tmp)
         args = case.setup(folder)
-        program = f"{case.prelude}\nimport sys\nsys.argv = ['decollage', *sys.argv[1:]]\nfrom cli.app import main\nmain()\n"
+        program = (f"{case.prelude}\nimport sys\nsys.argv = ['decollage', *sys.argv[1:]]\n"
+                   "from cli.app import main\nmain()\n")
         env = {**os.environ, "PYTHONPATH": str(code), "PYTHONUNBUFFERED": "1", **case.env}
         stderr_path = folder / "stderr.txt"
         started = time.perf_counter()
@@ -375,7 +377,35 @@ def run_case(case: Case, code: Path, timeout_s: float, rss_cap_mb: float) -> dic
         }
 
 
+def compare(before_files: list[Path], after_files: list[Path]) -> str:
+    """A Markdown table of each case before and after, from result files (later files override earlier ones)."""
+    def load(files: list[Path]) -> dict:
+        merged: dict = {}
+        for path in files:
+            merged.update({r["id"]: r for r in json.loads(path.read_text(encoding="utf-8"))["results"]})
+        return merged
+
+    before, after = load(before_files), load(after_files)
+    rows = ["| case | before: exit | time (s) | peak RSS (MB) | files in out/ | after: exit | time (s) | peak RSS (MB) "
+            "| files in out/ | after: message |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for case in CASES:
+        b, a = before.get(case.id), after.get(case.id)
+        if not (b and a):
+            continue
+        message = a.get("message", a.get("last_line", "")).replace("|", "\\|")
+        message = message if len(message) <= 160 else message[:159] + "…"
+        files = (lambda r: ", ".join(r.get("out_files", [])) or "-")
+        rows.append(f"| {case.id} | {b['exit']} | {b['time_s']} | {b['peak_rss_mb']} | {files(b)} | {a['exit']} "
+                    f"| {a['time_s']} | {a['peak_rss_mb']} | {files(a)} | {message} |")
+    return "\n".join(rows)
+
+
 def main(argv: list[str] | None = None) -> int:
+    if argv is None:
+        argv = sys.argv[1:]
+    if argv[:1] == ["compare"]:  # compare BEFORE.json[,MORE.json] AFTER.json[,MORE.json]
+        print(compare([Path(p) for p in argv[1].split(",")], [Path(p) for p in argv[2].split(",")]))
+        return 0
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--code", type=Path, default=REPO, help="checkout whose code runs (default: this one)")
     parser.add_argument("--json", type=Path, help="also write the results as JSON")

@@ -11,7 +11,8 @@ being printed; on leaving, one line per distinct warning is appended to ``notes`
     trimesh warned: face normals didn't match (log)
 
 The library is named by the top-level package of the file or logger that
-warned (a warning numpy raises on behalf of its caller names the caller). Lines are in first-seen order, messages are cut to one line of at most
+warned (a warning numpy raises on behalf of its caller names the caller).
+Lines are in first-seen order, messages are cut to one line of at most
 ``MAX_NOTE_CHARS`` characters, and at most ``MAX_NOTES`` distinct warnings are
 listed (then one line says how many more kinds there were).
 Warnings raised by the project's own packages are reported the same way.

@@ -507,7 +507,8 @@ class ExportSettings(_Strict):
     preview: bool = True
     preview_size_px: int = Field(512, ge=64, le=4096)
     taubin_iterations: int = Field(0, ge=0, le=200, description="Taubin smoothing passes; 0 = off.")
-    max_triangles: Optional[int] = Field(150_000, ge=4, le=100_000_000, description="Decimate above this; null = never.")
+    max_triangles: Optional[int] = Field(150_000, ge=4, le=100_000_000,
+                                         description="Decimate above this; null = never.")
     pivot: Pivot = Pivot.BOTTOM_CENTER
     vertex_colors: bool = True
     glb_material: bool = Field(False, description="Give GLBs a white matte material, for viewers whose default "

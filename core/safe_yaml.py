@@ -34,9 +34,8 @@ import re
 from typing import Any
 
 import yaml
-from yaml.composer import ComposerError
 from yaml.constructor import ConstructorError
-from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
+from yaml.nodes import MappingNode, Node, ScalarNode
 
 #: Deepest nesting of lists and mappings a recipe may use (the top-level mapping is level 1).
 MAX_DEPTH: int = 100
@@ -221,4 +220,4 @@ def load_yaml(text: str) -> Any:
         loader.dispose()
 
 
-__all__ = ["MAX_DEPTH", "MAX_VALUES", "YamlLimitError", "load_yaml", "ComposerError"]
+__all__ = ["MAX_DEPTH", "MAX_VALUES", "YamlLimitError", "load_yaml"]

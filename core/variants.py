@@ -19,10 +19,9 @@ every ``${...}`` must be a key. Each expanded asset records its ``variant``
 (key → value) for the manifest.
 
 Caps, checked on the counts before anything is expanded (so a typo that asks
-for millions of assets is refused at once): one asset's matrix may give at most
-``MAX_VARIANTS_PER_ASSET`` assets, and the whole recipe at most ``max_assets``
-(default ``DEFAULT_MAX_ASSETS``; ``decollage build/validate --max-assets N``
-raises it); and the expanded assets together may hold at most
+for millions of assets is refused at once): the whole recipe may give at most
+``max_assets`` assets (default ``DEFAULT_MAX_ASSETS``; ``decollage
+build/validate --max-assets N`` raises it), and the expanded assets together may hold at most
 ``MAX_EXPANDED_VALUES`` YAML values (a big extrude profile times many variants).
 Substitution walks the data with an explicit stack, never by recursion.
 """
@@ -39,10 +38,8 @@ from core.errors import RecipeError
 _PLACEHOLDER = re.compile(r"\$\{([^}]*)\}")
 _KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _NAME_UNSAFE = re.compile(r"[^A-Za-z0-9_.\-]+")
-#: Refuse matrices larger than this (a typo like a 1000-value list multiplies fast).
-MAX_VARIANTS_PER_ASSET = 10_000
-
-#: Most assets a recipe may expand to unless the caller raises the cap (``--max-assets``).
+#: Most assets a recipe may expand to unless the caller raises the cap (``--max-assets``);
+#: a typo like a 1000-value list multiplies fast.
 DEFAULT_MAX_ASSETS = 2_000
 
 #: Most values (scalars, lists, mappings) all expanded assets may hold together.
@@ -131,12 +128,6 @@ def _check_matrix(variants: Any, where: str) -> dict[str, list]:
                                   field=f"{where}.variants.{key}[{i}]")
         if len(set(map(repr, values))) != len(values):
             raise RecipeError("a value is listed twice", field=f"{where}.variants.{key}")
-    count = 1
-    for values in variants.values():
-        count *= len(values)
-    if count > MAX_VARIANTS_PER_ASSET:
-        raise RecipeError(f"expands to {count} assets, more than {MAX_VARIANTS_PER_ASSET}",
-                          field=f"{where}.variants", hint="split the matrix over several assets")
     return variants
 
 
@@ -196,7 +187,8 @@ def expand_assets(raw_assets: list, max_assets: int | None = DEFAULT_MAX_ASSETS
         raise RecipeError(f"the recipe expands to {total:,} assets, more than the cap of {max_assets:,} "
                           f"(assets[{biggest}] alone gives {sizes[biggest]:,})", field="assets",
                           hint="split the batch over several recipes, or raise the cap with --max-assets N")
-    values = sum(count_values(raw) * size for raw, size in zip(raw_assets, sizes) if size > 1)
+    values = sum(count_values({k: v for k, v in raw.items() if k not in ("variants", "name_template")}) * size
+                 for raw, size in zip(raw_assets, sizes) if size > 1)
     if values > MAX_EXPANDED_VALUES:
         raise RecipeError(f"the expanded assets would hold {values:,} values, more than {MAX_EXPANDED_VALUES:,}",
                           field="assets", hint="use fewer variants of large assets (e.g. long extrude profiles)")

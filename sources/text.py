@@ -301,7 +301,8 @@ def _cached_font(path: Path) -> _Font:
 def _resolve_font(font: str | None, base_dir: Path) -> Path:
     if font is None:
         return DEFAULT_FONT
-    return input_file(font, base_dir, field="font", noun="font file", hint="name a .ttf or .otf font file", kind=InputKind.FONT)
+    return input_file(font, base_dir, field="font", noun="font file", hint="name a .ttf or .otf font file",
+                      kind=InputKind.FONT)
 
 
 # --------------------------------------------------------------------------- layout

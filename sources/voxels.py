@@ -107,7 +107,8 @@ def rotate_grid(grid: np.ndarray, up: UpAxis | str) -> np.ndarray:
 
 
 def _resolve(relative: str, base_dir: Path) -> Path:
-    path = input_file(relative, base_dir, field="path", noun="file", hint="name a .npy or .npz file", kind=InputKind.VOXELS)
+    path = input_file(relative, base_dir, field="path", noun="file", hint="name a .npy or .npz file",
+                      kind=InputKind.VOXELS)
     if path.suffix.lower().lstrip(".") not in SUPPORTED_FORMATS:
         raise SourceError(f"unsupported voxel format {path.suffix or '(no extension)'!r}", field="path",
                           hint="supported: .npy (one occupancy array) or .npz (occupancy, part, style...)")

@@ -30,7 +30,7 @@ from cli.app import main
 from core.recipe_loader import json_schema
 
 SEED = 20_240_617
-COUNT = 2_400
+COUNT = 2_000
 MAX_SECONDS = 5.0
 REPO = Path(__file__).resolve().parents[1]
 

@@ -147,9 +147,9 @@ def _alias_bomb() -> str:
 def _variants(count_a: int, count_b: int, assets: int = 1) -> str:
     a = "[" + ",".join(f"w{i}" for i in range(count_a)) + "]"
     b = "[" + ",".join(str(i) for i in range(count_b)) + "]"
-    body = "".join(f"  - name: v{k}\n    variants: {{word: {a}, seed: {b}}}\n    source: {{kind: text, text: '${{word}}'}}\n"
-                   f"    regions: [{{part: body, style: brick}}]\n    detailize: {{detailizer: upsample, seed: '${{seed}}'}}\n"
-                   for k in range(assets))
+    body = "".join(f"  - name: v{k}\n    variants: {{word: {a}, seed: {b}}}\n"
+                   f"    source: {{kind: text, text: '${{word}}'}}\n    regions: [{{part: body, style: brick}}]\n"
+                   f"    detailize: {{detailizer: upsample, seed: '${{seed}}'}}\n" for k in range(assets))
     return "version: 1\nassets:\n" + body
 
 
@@ -192,7 +192,8 @@ def _script_batch(folder: Path) -> list[str]:
     ]) + "\n")
     assets = "".join(
         f"  - name: {fn}\n    source: {{kind: cad, script: s.py, script_function: {fn}, script_timeout_s: 3, "
-        f"script_memory_mb: 256}}\n    regions: [{{part: body, style: brick}}]\n    detailize: {{detailizer: upsample}}\n"
+        f"script_memory_mb: 256}}\n    regions: [{{part: body, style: brick}}]\n"
+        f"    detailize: {{detailizer: upsample}}\n"
         for fn in ("exits", "quits", "loops", "eats", "crashes"))
     write(folder, "r.yaml", "version: 1\nassets:\n" + assets)
     return _build()
@@ -301,7 +302,8 @@ CASES: list[Case] = [
     Case("yaml_list_as_key", _recipe_case("{[1, 2]: 3}\n"), 2, "line 1", "r.yaml", "mapping key"),
     Case("yaml_python_tag", _recipe_case("version: !!python/object/apply:os.system ['echo hi']\n"), 2, "line 1",
          "r.yaml", "not valid YAML"),
-    Case("yaml_two_documents", _recipe_case(recipe() + "---\n" + recipe()), 2, "line", "r.yaml", "but found another document"),
+    Case("yaml_two_documents", _recipe_case(recipe() + "---\n" + recipe()), 2, "line", "r.yaml",
+         "but found another document"),
     Case("yaml_date_is_a_string", lambda d: write(d, "r.yaml", recipe("{kind: text, text: 2024-01-01}")) and
          ["validate", "r.yaml"], 0, None, None),
     Case("yaml12_exponent_number", lambda d: mesh_recipe(d, cube_obj(), source_extra=", scale: 1e-3") and  # issue
@@ -315,8 +317,9 @@ CASES: list[Case] = [
          ["validate", "r.yaml", "--max-assets", "20"], 2, "assets", "r.yaml", "cap of 20"),
     Case("variants_list_is_fast", lambda d: write(d, "r.yaml", _variants(50, 30)) and
          ["build", "r.yaml", "--list"], 0, None, None),
-    Case("variants_unknown_key", _recipe_case(recipe("{kind: text, text: '${nope}'}", asset="    variants: {w: [a]}\n")),
-         2, "assets[0].source.text", "r.yaml", "not a variant key"),
+    Case("variants_unknown_key",
+         _recipe_case(recipe("{kind: text, text: '${nope}'}", asset="    variants: {w: [a]}\n")), 2,
+         "assets[0].source.text", "r.yaml", "not a variant key"),
     Case("cad_tree_40_deep", _recipe_case(_cad_tree(40)), 2, "assets[0].source", "r.yaml", "32 levels"),
     Case("cad_tree_450_deep", _recipe_case(_cad_tree(450)), 2, "line 4", "r.yaml", "100 levels"),  # issue
     Case("cad_1001_shapes", _recipe_case(_many_shapes(1001)), 2, "assets[0].source", "r.yaml", "1000"),

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from core.errors import RecipeError, SourceError, UsageError
+from core.errors import ExportError, RecipeError, SourceError, UsageError
 from core.files import (
     INPUT_LIMITS_MB,
     InputKind,
@@ -18,7 +18,6 @@ from core.files import (
     input_limit_bytes,
     read_input_bytes,
 )
-from core.errors import ExportError
 from core.recipe_loader import load_recipe, parse_recipe
 from core.safe_yaml import MAX_DEPTH, MAX_VALUES, YamlLimitError, load_yaml
 from core.variants import count_values, expand_assets
