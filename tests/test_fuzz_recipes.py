@@ -29,6 +29,8 @@ import yaml
 from cli.app import main
 from core.recipe_loader import json_schema
 
+pytestmark = pytest.mark.e2e  # 2,000 CLI runs in this process: about a minute
+
 SEED = 20_240_617
 COUNT = 2_000
 MAX_SECONDS = 5.0
