@@ -237,9 +237,10 @@ class _Runner:
                 return answer
         except ValueError:
             pass
+        self._stderr.seek(0, os.SEEK_END)
+        self._stderr.seek(max(0, self._stderr.tell() - 2000))
+        last = (self._stderr.read().decode("utf-8", "replace").strip().splitlines() or ["no output"])[-1]
         self.close()
-        self._stderr.seek(0)
-        last = (self._stderr.read()[-2000:].decode("utf-8", "replace").strip().splitlines() or ["no output"])[-1]
         raise SourceError(f"the {self.engine} runtime {self.python} failed: {last[:400]}", field="script_engine",
                           hint=self.hint)
 

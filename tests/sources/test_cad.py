@@ -425,3 +425,15 @@ def test_a_deep_boolean_tree_is_built_without_recursion():
                                             rotate_deg=(0, 0, 0))
     shape = cad.build_node(node, "parts[0]")
     assert shape.bounding_box().size.Z == pytest.approx(3)
+
+
+@pytest.mark.parametrize("python, words", [
+    (sys.executable, "cannot import cadquery"),  # a Python without cadquery: the runner says so and stops
+    ("/bin/false", "failed: no output"),  # not a Python at all: it ends at once
+])
+def test_a_runtime_that_cannot_run_scripts_is_a_clear_error(tmp_path, monkeypatch, python, words):
+    path = script_file(tmp_path, "def build():\n    pass\n")
+    monkeypatch.setenv(cad_script.CADQUERY_PYTHON_ENV, python)
+    with pytest.raises(SourceError) as info:
+        load_script(path, script_engine="cadquery")
+    assert info.value.field == "script_engine" and words in info.value.message, info.value.message
