@@ -265,6 +265,7 @@ class InputKind(Enum):
     FONT = "font"
     MESH = "mesh"
     VOXELS = "voxels"
+    VOX = "vox"
     CHECKPOINT = "checkpoint"
     STYLE_SET = "style set"
     SCRIPT = "script"
@@ -279,13 +280,14 @@ class InputKind(Enum):
 #: Chosen so that reading and parsing the largest allowed file stays within a few GB of memory:
 #: a recipe is text (a real one is a few KB; the YAML reader parses ~1 MB/s); a 128 MB font fits the
 #: largest CJK collections; a 256 MB mesh is ~5 M binary-STL triangles; a voxel file holds at most
-#: 512 MB of array data once decompressed; the shipped checkpoint is 4.2 MB; a 256³ style set of 32
+#: 512 MB of array data once decompressed, a .vox file 512 MB (a full 256³ model is 64 MB); the shipped checkpoint is 4.2 MB; a 256³ style set of 32
 #: exemplars is ~40 MB compressed; a script is Python source.
 INPUT_LIMITS_MB: dict[InputKind, int] = {
     InputKind.RECIPE: 1,
     InputKind.FONT: 128,
     InputKind.MESH: 256,
     InputKind.VOXELS: 512,
+    InputKind.VOX: 512,
     InputKind.CHECKPOINT: 512,
     InputKind.STYLE_SET: 1024,
     InputKind.SCRIPT: 16,

@@ -376,14 +376,14 @@ class VoxSource(_Strict):
     """
 
     kind: Literal["vox"]
-    path: str
+    path: str = Field(max_length=MAX_PATH_CHARS)
     parts: Optional[dict[Annotated[str, Field(pattern=NAME_PATTERN)], list[PaletteIndex]]] = None
     styles: Optional[dict[Annotated[str, Field(pattern=NAME_PATTERN)], list[PaletteIndex]]] = None
     ignore: list[PaletteIndex] = Field([], description="Palette indices whose voxels are dropped.")
     model: Optional[Union[Annotated[int, Field(ge=0)], str]] = Field(
         None, description="Which model instance of a multi-model file: index, name, or '@all' (merged as placed).")
     up_axis: UpAxis = Field(UpAxis.Z, description="MagicaVoxel is Z up (front -Y); it is rotated onto +Y.")
-    voxel_size_m: PositiveFloat = Field(0.05, description="Edge of one input voxel in metres.")
+    voxel_size_m: VoxelMetres = Field(0.05, description="Edge of one input voxel in metres.")
 
     @model_validator(mode="after")
     def _one_label_per_index(self) -> "VoxSource":

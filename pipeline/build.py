@@ -5,8 +5,8 @@ are regular files within their size limits and of a readable format, fonts
 cover the text, the detailizer, checkpoint, style and part names are known)
 so that a bad recipe fails before anything is written; it never runs a
 script. ``build_recipe`` first checks the output folder (``check_output``:
-the folder, its ``.decollage`` records folder and ``manifest.json`` are of the
-right kind and writable) and writes nothing when they are not. While an
+the folder, its ``.decollage`` records folder, ``manifest.json``, ``NOTICE.txt``
+and ``build.json`` are of the right kind and writable) and writes nothing when they are not. While an
 asset builds, its memory is estimated as soon as its grid size is known
 (``core/budget.py``) and library warnings are caught into its manifest
 warnings (``core/capture.py``). ``plan_build`` computes each asset's content key and finds
@@ -40,9 +40,9 @@ from pipeline.cache import RECORD_DIR, asset_key, remove_stale_temporaries, vali
 from pipeline.engines import make_collision, make_lods
 from pipeline.executors import LocalExecutor
 from pipeline.export import apply_pivot, export_asset
-from pipeline.manifest import MANIFEST_NAME, write_build_signal, write_manifest
+from pipeline.manifest import BUILD_SIGNAL, MANIFEST_NAME, write_build_signal, write_manifest
 from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
-from pipeline.provenance import asset_provenance, glb_extras, write_notice
+from pipeline.provenance import NOTICE_NAME, asset_provenance, glb_extras, write_notice
 from pipeline.regions import apply_regions
 from pipeline.report import AssetReport, AssetStatus
 from pipeline.vox_export import vox_files
@@ -144,11 +144,12 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
 
 
 def check_output(out_dir: Path) -> None:
-    """Before any work: ``out_dir``, its records folder and ``manifest.json`` can be written (ExportError if not).
+    """Before any work: ``out_dir``, its records folder and the build-level files (``manifest.json``,
+    ``NOTICE.txt``, ``build.json``) can be written (ExportError if not).
 
     Writes nothing (``core.files.check_output_folder``).
     """
-    check_output_folder(out_dir, folders=(RECORD_DIR,), files=(MANIFEST_NAME,))
+    check_output_folder(out_dir, folders=(RECORD_DIR,), files=(MANIFEST_NAME, NOTICE_NAME, str(BUILD_SIGNAL)))
     memory_budget_bytes()  # an unusable DECOLLAGE_MEMORY_BUDGET_GB is a usage error now, not an asset error later
 
 

@@ -32,6 +32,7 @@ PREFLIGHT: dict[str, Callable[..., None]] = {
     "cad": cad.preflight,
     "mesh": mesh.preflight,
     "voxels": voxels.preflight,
+    "vox": vox.preflight,
 }
 
 

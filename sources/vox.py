@@ -38,24 +38,31 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import SourceError
-from core.files import input_file
+from core.files import InputKind, input_file, read_input_bytes
 from core.grid import EMPTY
 from core.recipe import ALL_MODELS, VoxSource
 from sources.base import PartVoxels
 from sources.vox_file import MAX_PLACED_VOXELS, VoxScene, dense, place, read_vox
 from sources.voxels import rotate_grid
 
-#: Largest file read, bytes (a full 256³ model is 64 MiB of XYZI rows).
-MAX_FILE_BYTES = 512 << 20
+
+def preflight(spec: VoxSource, base_dir: Path) -> None:
+    """Checks before building: a regular ``.vox`` file within the vox size limit (nothing parsed)."""
+    _resolve(spec.path, base_dir)
+
+
+def _resolve(relative: str, base_dir: Path) -> Path:
+    path = input_file(relative, base_dir, field="path", noun="file", hint="name a .vox file", kind=InputKind.VOX)
+    if path.suffix.lower() != ".vox":
+        raise SourceError(f"unsupported format {path.suffix or '(no extension)'!r} for a vox source", field="path",
+                          hint="name a MagicaVoxel .vox file (or use kind: voxels for .npy/.npz)")
+    return path
 
 
 def load(spec: VoxSource, base_dir: Path) -> PartVoxels:
     """Read ``spec.path`` (relative to ``base_dir``) into a ``PartVoxels`` in the canonical frame."""
-    path = input_file(spec.path, base_dir, field="path", noun="file", hint="name a .vox file")
-    if path.suffix.lower() != ".vox":
-        raise SourceError(f"unsupported format {path.suffix or '(no extension)'!r} for a vox source", field="path",
-                          hint="name a MagicaVoxel .vox file (or use kind: voxels for .npy/.npz)")
-    scene = read_vox(_read_bytes(path))
+    path = _resolve(spec.path, base_dir)
+    scene = read_vox(read_input_bytes(path, InputKind.VOX, field="path"))
     grid, warnings = select_model(scene, spec.model)
     part, part_names, style, style_names, more = map_palette(grid, scene.palette, spec)
     return PartVoxels(
@@ -67,17 +74,6 @@ def load(spec: VoxSource, base_dir: Path) -> PartVoxels:
         warnings=[f"{path.name}: {w}" for w in (*scene.notes, *warnings, *more)],
         input_files=[path],
     )
-
-
-def _read_bytes(path: Path) -> bytes:
-    try:
-        size = path.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise SourceError(f"the file is {size / 2**20:.0f} MiB, more than a .vox file can sensibly hold "
-                              f"({MAX_FILE_BYTES >> 20} MiB)", field="path", hint="is this really a .vox file?")
-        return path.read_bytes()
-    except OSError as exc:
-        raise SourceError(f"cannot read the .vox file: {exc.strerror}", field="path") from None
 
 
 # --------------------------------------------------------------------------- models

@@ -11,7 +11,8 @@ Each case asserts:
 - one line naming the file and the field (or option, or YAML line), with the
   limit or the problem (``words``); no traceback, no "internal error";
 - no partial files: a refused build leaves the output folder as it was (or
-  absent), a failed asset leaves only ``manifest.json``;
+  absent), a failed asset leaves only the build-level files (``manifest.json``,
+  ``NOTICE.txt``, ``build.json``);
 - bounded time and memory: under the case's ``max_s`` (20 s; scripts, which
   start a CAD engine, 60-90 s) and ``MAX_RSS_MB`` (1 GB) peak RSS.
 
@@ -37,6 +38,8 @@ pytestmark = pytest.mark.e2e
 
 HARNESS = Path(__file__).with_name("hostile_harness.py")
 MAX_RSS_MB = 1024.0
+#: What a build whose assets all failed leaves: the build-level files only.
+BUILD_LEVEL_FILES = ["NOTICE.txt", "build.json", "manifest.json"]
 
 TEXT = "{kind: text, text: A}"
 
@@ -409,6 +412,15 @@ CASES: list[Case] = [
          "assets[0].source.path", "r.yaml", "3-D"),
     Case("voxels_no_occupancy", _voxels_case(_npz({"part.npy": npy_bytes(np.ones((4, 4, 4), np.int16))})), 2,
          "assets[0].source.path", "r.yaml", "'occupancy'"),
+    Case("vox_dev_zero", lambda d: _link(d, "m.vox", "/dev/zero") and write(
+        d, "r.yaml", recipe("{kind: vox, path: m.vox}")) and _build(), 2, "assets[0].source.path", "r.yaml",
+        "character device"),
+    Case("vox_sparse_1gb", lambda d: sparse(d, "m.vox", 1 << 30) and write(
+        d, "r.yaml", recipe("{kind: vox, path: m.vox}")) and _build(), 2, "assets[0].source.path", "r.yaml",
+        "DECOLLAGE_MAX_VOX_MB"),
+    Case("vox_garbage", lambda d: write(d, "m.vox", b"VOX " + os.urandom(300)) and write(
+        d, "r.yaml", recipe("{kind: vox, path: m.vox}")) and _build(), 1, "assets[0].source.path", "r.yaml",
+        "not a readable .vox file"),
     # ------------------------------------------------------------------ checkpoints
     Case("checkpoint_random_bytes", _checkpoint_case(lambda d: write(d, "c.pt", os.urandom(4096)) and "c.pt"),  # issue
          2, "assets[0].detailize.checkpoint", "r.yaml", "not a torch file"),
@@ -437,6 +449,8 @@ CASES: list[Case] = [
          ".decollage", "must be a folder"),
     Case("out_manifest_is_a_folder", _output_case(lambda d: (d / "out" / "manifest.json").mkdir(parents=True)),  # issue
          2, None, "manifest.json", "must be a file"),
+    Case("out_notice_is_a_folder", _output_case(lambda d: (d / "out" / "NOTICE.txt").mkdir(parents=True)), 2, None,
+         "NOTICE.txt", "must be a file"),
     Case("out_cache_read_only", _output_case(_read_only_cache), 2, None, ".decollage", "not writable",  # issue
          needs_root=True),
     # ------------------------------------------------------------------ scripts
@@ -553,7 +567,7 @@ def test_hostile_case(catalogue, case_id):
         assert manifest["summary"]["built"] == 0, manifest["summary"]
         assert all(a["status"] == "failed" and a["outputs"] == {} for a in manifest["assets"])
         files = sorted(str(p.relative_to(folder / "out")) for p in (folder / "out").rglob("*") if p.is_file())
-        assert files == ["manifest.json"], files
+        assert files == BUILD_LEVEL_FILES, files  # no asset file, no record of a failed asset
     if case.file:
         assert case.file in message, shown
     if case.field:
