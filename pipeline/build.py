@@ -120,9 +120,7 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
             message = exc.message if exc.message.endswith(suffix) else exc.message + suffix
             raise RecipeError(message, file=loaded.path, field=f"{where}.source.{exc.field or ''}".rstrip("."),
                               hint=exc.hint) from None
-        if asset.detailize.checkpoint is not None:
-            check_input_file(loaded.resolve(asset.detailize.checkpoint), InputKind.CHECKPOINT, error=RecipeError,
-                             file=loaded.path, field=f"{where}.detailize.checkpoint")
+        _check_checkpoint_file(asset.detailize.checkpoint, loaded, f"{where}.detailize.checkpoint")
         name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
         try:
             det = get_detailizer(name, checkpoint, asset.detailize.device)
@@ -141,6 +139,19 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
                         hint=(f"use one of the {attr}s the '{det.name}' detailizer was trained on" if det.learned
                               else f"use one of the {attr}s of the style set the '{det.name}' detailizer copies from"),
                     )
+
+
+def _check_checkpoint_file(value: str | None, loaded: LoadedRecipe, field: str) -> None:
+    """A ``checkpoint`` that names a file (it exists, or looks like a path) is checked for kind and size before
+    any detailizer reads it: a ``.npz`` (a style set for ``quilt``) as a style set, anything else as a
+    checkpoint. A bare name (``quilt``'s built-in set ``things``) is left to the detailizer to resolve."""
+    if value is None:
+        return
+    path = loaded.resolve(value)
+    looks_like_a_path = "/" in value or "\\" in value or Path(value).suffix != ""
+    if path.exists() or path.is_symlink() or looks_like_a_path:
+        kind = InputKind.STYLE_SET if path.suffix.lower() == ".npz" else InputKind.CHECKPOINT
+        check_input_file(path, kind, error=RecipeError, file=loaded.path, field=field)
 
 
 def check_output(out_dir: Path) -> None:
