@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import signal
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Optional
 
@@ -17,7 +19,8 @@ from cli.console import ExitCode, fail, literal, stderr
 from core.errors import DecollageError, UsageError
 from core.recipe_loader import load_recipe
 from core.variants import DEFAULT_MAX_ASSETS
-from pipeline.build import build_recipe, check_recipe, plan_build
+from pipeline.batch import BuildInterrupted, build_recipe, plan_build
+from pipeline.build import check_recipe
 from pipeline.executors import ExecutorKind, LocalExecutor, make_executor
 from pipeline.report import AssetStatus
 from pipeline.watch import QUIET_MS, Rebuild, watch_build
@@ -35,6 +38,9 @@ def build_command(
     gpus_per_task: float = typer.Option(0.0, "--gpus-per-task", min=0.0,
                                         help="GPUs a cluster task asks for (Dask resource 'GPU')."),
     force: bool = typer.Option(False, "--force", help="Rebuild even assets whose outputs are up to date."),
+    wait: bool = typer.Option(True, "--wait/--no-wait",
+                              help="When another build is writing into the output folder: wait for it (default), "
+                                   "or stop at once (exit 2)."),
     list_only: bool = typer.Option(False, "--list", help="Show the assets (variants expanded) and stop."),
     max_assets: int = typer.Option(DEFAULT_MAX_ASSETS, "--max-assets", min=1,
                                    help="Refuse a recipe whose variants expand to more assets than this."),
@@ -52,6 +58,7 @@ def build_command(
     """Build every asset of a recipe into meshes, previews and a manifest (only what changed)."""
 
     started = time.perf_counter()
+    term = _Signal()
     try:
         loaded = load_recipe(recipe, max_assets)
         assets = loaded.recipe.assets
@@ -76,13 +83,18 @@ def build_command(
             _print_check(plan, json_out)
             raise typer.Exit(ExitCode.ASSETS_FAILED if any(p.cached_entry is None for p in plan) else ExitCode.OK)
         total = len(selected) if selected else len(names)
-        with _ConsoleProgress(total, quiet or json_out, keep_going) as progress:
+        with _ConsoleProgress(total, quiet or json_out, keep_going, out) as progress, _sigterm_interrupts(term):
             runner = make_executor(executor, jobs, address, gpus_per_task, progress)
-            reports = build_recipe(loaded, out, progress, detailizer, only=pick, force=force, executor=runner)
+            reports = build_recipe(loaded, out, progress, detailizer, only=pick, force=force, executor=runner,
+                                   wait=wait)
     except DecollageError as exc:
         fail(exc)
     except _Stopped as stop:
         reports = stop.reports
+    except BuildInterrupted as interrupted:
+        _report_interruption(interrupted.stopped, out, recipe, time.perf_counter() - started, json_out,
+                             "SIGTERM" if term.received else "Ctrl-C")
+        raise typer.Exit(ExitCode.TERMINATED if term.received else ExitCode.INTERRUPTED) from None
     if debug:
         for r in reports:
             if r.traceback:
@@ -111,7 +123,7 @@ def _watch(recipe: Path, out: Path, pick, detailizer, runner, force: bool, quiet
     first = [force]
 
     def build(loaded):
-        with _ConsoleProgress(len(loaded.recipe.assets), True, True) as progress:
+        with _ConsoleProgress(len(loaded.recipe.assets), True, True, out) as progress:
             if isinstance(runner, LocalExecutor):
                 runner.progress = progress
             reports = build_recipe(loaded, out, progress, detailizer, only=pick, force=first[0], executor=runner)
@@ -161,14 +173,61 @@ def _print_list(loaded, pick, json_out: bool) -> None:
 
 
 def _print_check(plan, json_out: bool) -> None:
-    stale = [p.name for p in plan if p.cached_entry is None]
+    stale = [p for p in plan if p.cached_entry is None]
     fresh = [p.name for p in plan if p.cached_entry is not None]
     if json_out:
-        sys.stdout.write(json.dumps({"stale": stale, "up_to_date": fresh}, indent=2) + "\n")
+        sys.stdout.write(json.dumps({"stale": [p.name for p in stale], "up_to_date": fresh,
+                                     "reasons": {p.name: p.reason for p in stale}}, indent=2) + "\n")
     else:
-        for name in stale:
-            typer.echo(f"stale\t{name}")
+        for p in stale:
+            typer.echo(f"stale\t{p.name}\t{p.reason}")
         typer.echo(f"{len(stale)} stale, {len(fresh)} up to date", err=True)
+
+
+class _Signal:
+    received = False
+
+
+@contextmanager
+def _sigterm_interrupts(state: _Signal):
+    """While building, SIGTERM (a CI timeout, ``kill``) stops the build as Ctrl-C does: workers first, then
+    the manifest of what is on disk; ``state.received`` says whether SIGTERM came."""
+
+    def handler(signum, frame):
+        state.received = True
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave SIGTERM alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _report_interruption(stopped, out: Path, recipe: Path, wall_s: float, json_out: bool, cause: str) -> None:
+    """What an interrupted build left: printed on stderr (and as the --json summary on stdout)."""
+    reports = stopped.reports
+    if json_out:
+        summary = _json_summary(reports, recipe, out, wall_s)
+        summary["interrupted"] = {"by": cause, "in_progress": stopped.in_progress, "not_started": stopped.not_started,
+                                  "removed_files": stopped.removed_files}
+        sys.stdout.write(json.dumps(summary, indent=2) + "\n")
+    console = stderr()
+    built = sum(r.status == AssetStatus.BUILT and not r.cached for r in reports)
+    cached = sum(r.cached for r in reports)
+
+    def listing(names):
+        return f" ({literal(', '.join(names[:8]))}{', ...' if len(names) > 8 else ''})" if names else ""
+
+    console.print(f"[yellow]interrupted[/] by {cause} after {wall_s:.1f} s: stopped "
+                  f"{len(stopped.in_progress)} assets in progress{listing(stopped.in_progress)}, "
+                  f"{len(stopped.not_started)} not started{listing(stopped.not_started)}")
+    console.print(f"{literal(out / 'manifest.json')} lists the {len(reports)} assets in the folder ({built} built, "
+                  f"{cached} up to date, {len(reports) - built - cached} failed); the same command builds the rest")
 
 
 def _json_summary(reports, recipe: Path, out: Path, wall_s: float) -> dict:
@@ -200,8 +259,9 @@ class _Stopped(Exception):
 class _ConsoleProgress:
     """Asset-level progress on stderr: a live bar on a terminal, one line per asset otherwise."""
 
-    def __init__(self, total: int, quiet: bool, keep_going: bool = True) -> None:
+    def __init__(self, total: int, quiet: bool, keep_going: bool = True, out: Path | None = None) -> None:
 
+        self.out = out
         self.console = stderr()
         self.quiet = quiet
         self.keep_going = keep_going
@@ -220,6 +280,16 @@ class _ConsoleProgress:
     def __exit__(self, *exc):
         if self.live:
             self.bar.stop()
+
+    def waiting_for_lock(self, holder) -> None:
+        who = holder.describe() if holder else "another build"
+        self.console.print(f"waiting: {literal(self.out)} is being written by another build ({literal(who)}); "
+                           "Ctrl-C to stop waiting, --no-wait to stop instead of waiting")
+
+    def took_over_lock(self, holder) -> None:
+        if not self.quiet:
+            self.console.print(f"[dim]note: the build that last wrote {literal(self.out)} did not finish "
+                               f"({literal(holder.describe())}); its lock was taken over[/]")
 
     def asset_started(self, index: int, total: int, name: str) -> None:
         self.name = name

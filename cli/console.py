@@ -27,7 +27,8 @@ class ExitCode(IntEnum):
     ASSETS_FAILED = 1  # some assets failed; the others were still built and are in the manifest
     INVALID = 2  # invalid recipe or usage (nothing was built or written)
     INTERNAL = 3  # internal error (a bug; run with --debug for the traceback)
-    INTERRUPTED = 130  # Ctrl-C
+    INTERRUPTED = 130  # Ctrl-C (128 + SIGINT)
+    TERMINATED = 143  # SIGTERM (128 + SIGTERM), e.g. a CI timeout
 
 
 def stderr() -> Console:

@@ -10,6 +10,7 @@ it accepts any name (the non-learned baseline, whose styles only colour regions)
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
 from typing import Protocol
 
 from core.errors import DetailizeError
@@ -17,12 +18,22 @@ from core.grid import FineGrid, LabeledGrid
 
 
 class Detailizer(Protocol):
+    """``input_files``: every file the detailizer loaded (its checkpoint, a style set...); a build
+    records them with their sha256 in each asset's input closure (``pipeline/cache.py``), so an
+    edit to any of them makes the asset stale.
+
+    ``detailize(grid, seed, threads)``: ``threads`` is the CPU thread count for its kernels (None:
+    the detailizer's own default). A learned model's convolutions round differently with another
+    count, so a build passes the same count wherever an asset runs (``pipeline/executors.py``).
+    """
+
     name: str
     learned: bool
     style_names: tuple[str, ...] | None
     part_names: tuple[str, ...] | None
+    input_files: tuple[Path, ...]
 
-    def detailize(self, grid: LabeledGrid, seed: int = 0) -> FineGrid: ...
+    def detailize(self, grid: LabeledGrid, seed: int = 0, threads: int | None = None) -> FineGrid: ...
 
     def describe(self) -> dict: ...
 

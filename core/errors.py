@@ -84,3 +84,12 @@ class UsageError(DecollageError):
 
 class StudioError(DecollageError):
     """The studio (``decollage view`` / ``paint``) refuses a request or cannot do it (bad path, save refused)."""
+
+
+class LockedError(DecollageError):
+    """Another build holds the output folder's lock (``pipeline/lock.py``)."""
+
+
+class AbandonedError(DecollageError):
+    """The build that asked for an asset no longer holds the output folder (it was killed or
+    interrupted), so the asset's files are not written."""

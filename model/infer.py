@@ -150,6 +150,7 @@ class DecollageDetailizer:
                 )
             checkpoint = DEFAULT_CHECKPOINT
         self.checkpoint_path = Path(checkpoint)
+        self.input_files: tuple[Path, ...] = (self.checkpoint_path.resolve(),)  # what this detailizer read
         self.device = resolve_device(device)
         ckpt: Checkpoint = load_checkpoint(self.checkpoint_path)
         self.ckpt = ckpt
@@ -190,8 +191,11 @@ class DecollageDetailizer:
         """(the set the checkpoint learned from, as a ``StyleSetRecord`` or None; where that came from)."""
         return checkpoint_style_set(self.ckpt.training)
 
-    def detailize(self, grid: LabeledGrid, seed: int = 0) -> FineGrid:
+    def detailize(self, grid: LabeledGrid, seed: int = 0, threads: int | None = None) -> FineGrid:
         """LabeledGrid (X, Y, Z) → FineGrid (f·X, f·Y, f·Z), occupancy float32 in [0, 1].
+
+        ``threads``: CPU threads for the generator (None: ``cpu_threads()``). The output's float
+        rounding depends on it (oneDNN splits its reductions by thread), so equal bytes need equal counts.
 
         Raises:
             DetailizeError: the grid uses a style or part name unknown to the checkpoint.
@@ -206,7 +210,7 @@ class DecollageDetailizer:
         else:
             parts = self._map(grid.part, occ, grid.part_names, self._part_index, "part")
             styles = self._map(grid.style, occ, grid.style_names, self._style_index, "style")
-            fine = self._run(occ, parts, styles, seed)
+            fine = self._run(occ, parts, styles, seed, threads)
         return FineGrid(
             occupancy=fine,
             style=styles_fine,
@@ -235,7 +239,8 @@ class DecollageDetailizer:
         lut = np.array([index.get(n, -1) for n in names] or [-1], dtype=np.int64)
         return np.where(occ, lut[np.clip(values, 0, None)], -1)
 
-    def _run(self, occ: np.ndarray, parts: np.ndarray, styles: np.ndarray, seed: int) -> np.ndarray:
+    def _run(self, occ: np.ndarray, parts: np.ndarray, styles: np.ndarray, seed: int,
+             threads: int | None = None) -> np.ndarray:
         """Run the generator on the occupied bounding box + ``MARGIN`` cells; zero elsewhere.
 
         The crop is what training saw (bbox + one empty coarse cell, padded with empty
@@ -254,7 +259,7 @@ class DecollageDetailizer:
         styles_c = fill_nearest(np.pad(styles[src], pad, constant_values=-1), occ_c)
         gen = self.generator
         if self.device.type == "cpu":
-            torch.set_num_threads(cpu_threads())
+            torch.set_num_threads(threads or cpu_threads())
         with torch.random.fork_rng(devices=[]), torch.inference_mode():
             torch.manual_seed(int(seed))
             inputs = gen.make_inputs(torch.from_numpy(occ_c)[None], torch.from_numpy(parts_c)[None],

@@ -70,6 +70,7 @@ class UpsampleDetailizer:
     learned = False
     style_names: tuple[str, ...] | None = None  # any style name is accepted: styles only colour regions
     part_names: tuple[str, ...] | None = None
+    input_files: tuple = ()  # it reads no file
 
     def __init__(self, factor: int = UPSAMPLE_FACTOR, sigma_fine_voxels: float = SIGMA_FINE_VOXELS) -> None:
         self.factor = factor
@@ -78,9 +79,10 @@ class UpsampleDetailizer:
     def describe(self) -> dict:
         return {"name": self.name, "learned": False, "factor": self.factor, "sigma_fine_voxels": self.sigma}
 
-    def detailize(self, grid: LabeledGrid, seed: int = 0) -> FineGrid:
-        """LabeledGrid (X, Y, Z) → FineGrid (16X, 16Y, 16Z); ``seed`` is unused (deterministic)."""
-        del seed
+    def detailize(self, grid: LabeledGrid, seed: int = 0, threads: int | None = None) -> FineGrid:
+        """LabeledGrid (X, Y, Z) → FineGrid (16X, 16Y, 16Z); ``seed`` is unused (deterministic), and so is
+        ``threads`` (its matrix products give the same bytes with any BLAS thread count)."""
+        del seed, threads
         f, occ = self.factor, grid.occupancy
         fine = smooth_upsample(occ, f, self.sigma)
         # Confine the blur to the coarse cells: at iso 0.4 the blurred step would

@@ -1,20 +1,18 @@
-"""Run the one flow for every asset of a recipe: source → voxelize → regions → detailize → mesh → export.
+"""The one flow that builds an asset: source → voxelize → regions → detailize → mesh → export.
 
 ``check_recipe`` does every check that needs no heavy work (input files exist,
 are regular files within their size limits and of a readable format, fonts
 cover the text, the detailizer, checkpoint, style and part names are known)
 so that a bad recipe fails before anything is written; it never runs a
-script. ``build_recipe`` first checks the output folder (``check_output``:
-the folder, its ``.decollage`` records folder, ``manifest.json``, ``NOTICE.txt``
-and ``build.json`` are of the right kind and writable) and writes nothing when they are not. While an
-asset builds, its memory is estimated as soon as its grid size is known
-(``core/budget.py``) and library warnings are caught into its manifest
-warnings (``core/capture.py``). ``plan_build`` computes each asset's content key and finds
-the assets whose recorded outputs are still valid (``pipeline/cache.py``).
-``build_recipe`` builds the rest through an executor (in process, worker
-processes, or a cluster: ``pipeline/executors.py``); a failing asset is
-reported and leaves no partial file, the others are still built, and
-``manifest.json`` describes the whole build.
+script. ``build_asset`` builds one asset; a failing asset is reported and
+leaves no partial file. While it builds, its memory is estimated as soon as
+its grid size is known (``core/budget.py``) and library warnings are caught
+into its manifest warnings (``core/capture.py``). Its manifest entry records
+the asset's input closure: every file its source and its detailizer read,
+with their sha256 (``pipeline/cache.py``). Its kernels run with ``ASSET_THREADS``
+threads (``pipeline/executors.py``) so the bytes do not depend on where it
+runs. Planning, executors, records and the manifest of a whole recipe are in
+``pipeline/batch.py``.
 """
 
 from __future__ import annotations
@@ -22,27 +20,24 @@ from __future__ import annotations
 import hashlib
 import time
 import traceback
-from collections.abc import Callable
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
-from core.budget import check_asset_memory, memory_budget_bytes
+from core.budget import check_asset_memory
 from core.capture import captured_warnings
 from core.detailizer import effective_checkpoint, get_detailizer
 from core.errors import DecollageError, RecipeError, UsageError
-from core.files import InputKind, check_input_file, check_output_folder, ensure_writable_dir, sha256_file
+from core.files import InputKind, check_input_file, sha256_file
 from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset
-from core.recipe_loader import LoadedRecipe, parse_recipe
+from core.recipe_loader import LoadedRecipe
 from core.structure import strict_loose_iou
 from geometry.voxelize import mesh_grid_shape, voxelize
-from pipeline.cache import RECORD_DIR, asset_key, remove_stale_temporaries, valid_record, write_record
+from pipeline.cache import closure_records
 from pipeline.engines import make_collision, make_lods
-from pipeline.executors import LocalExecutor
+from pipeline.executors import ASSET_THREADS
 from pipeline.export import apply_pivot, export_asset
-from pipeline.manifest import BUILD_SIGNAL, MANIFEST_NAME, write_build_signal, write_manifest
 from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
-from pipeline.provenance import NOTICE_NAME, asset_provenance, glb_extras, write_notice
+from pipeline.provenance import asset_provenance, glb_extras
 from pipeline.regions import apply_regions
 from pipeline.report import AssetReport, AssetStatus
 from pipeline.vox_export import vox_files
@@ -58,18 +53,14 @@ class Progress:
 
     def asset_finished(self, report: AssetReport) -> None: ...
 
+    def waiting_for_lock(self, holder) -> None:
+        """Another build holds the output folder (``pipeline/lock.py``'s ``Holder``, or None); this one waits."""
 
-@dataclass(frozen=True)
-class PlannedAsset:
-    """One asset of a build: its content key, and its recorded entry when that is still valid."""
-
-    index: int
-    name: str
-    key: str
-    cached_entry: dict | None
+    def took_over_lock(self, holder) -> None:
+        """The output folder's lock was left by a build that was killed (its ``Holder``); this one took it."""
 
 
-def _input_files(asset: Asset, loaded: LoadedRecipe) -> dict[str, Path]:
+def named_input_files(asset: Asset, loaded: LoadedRecipe) -> dict[str, Path]:
     """Recipe field name → resolved path, for the source's file fields that are set."""
     files = {}
     for name in SOURCE_FILE_FIELDS[asset.source.kind]:
@@ -79,7 +70,7 @@ def _input_files(asset: Asset, loaded: LoadedRecipe) -> dict[str, Path]:
     return files
 
 
-def _detailizer_of(asset: Asset, loaded: LoadedRecipe, override: str | None) -> tuple[str, str | None]:
+def detailizer_of(asset: Asset, loaded: LoadedRecipe, override: str | None) -> tuple[str, str | None]:
     settings = asset.detailize
     return override or settings.detailizer, settings.checkpoint and str(loaded.resolve(settings.checkpoint))
 
@@ -88,8 +79,8 @@ def input_paths(loaded: LoadedRecipe, detailizer_override: str | None = None) ->
     """Every file the assets' keys hash before building: the files the recipe names, the weights."""
     paths = set()
     for asset in loaded.recipe.assets:
-        paths.update(_input_files(asset, loaded).values())
-        weights = effective_checkpoint(*_detailizer_of(asset, loaded, detailizer_override))
+        paths.update(named_input_files(asset, loaded).values())
+        weights = effective_checkpoint(*detailizer_of(asset, loaded, detailizer_override))
         if weights:
             paths.add(Path(weights))
     return paths
@@ -121,7 +112,7 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
             raise RecipeError(message, file=loaded.path, field=f"{where}.source.{exc.field or ''}".rstrip("."),
                               hint=exc.hint) from None
         _check_checkpoint_file(asset.detailize.checkpoint, loaded, f"{where}.detailize.checkpoint")
-        name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
+        name, checkpoint = detailizer_of(asset, loaded, detailizer_override)
         try:
             det = get_detailizer(name, checkpoint, asset.detailize.device)
         except DecollageError as exc:
@@ -152,35 +143,6 @@ def _check_checkpoint_file(value: str | None, loaded: LoadedRecipe, field: str) 
     if path.exists() or path.is_symlink() or looks_like_a_path:
         kind = InputKind.STYLE_SET if path.suffix.lower() == ".npz" else InputKind.CHECKPOINT
         check_input_file(path, kind, error=RecipeError, file=loaded.path, field=field)
-
-
-def check_output(out_dir: Path) -> None:
-    """Before any work: ``out_dir``, its records folder and the build-level files (``manifest.json``,
-    ``NOTICE.txt``, ``build.json``) can be written (ExportError if not).
-
-    Writes nothing (``core.files.check_output_folder``).
-    """
-    check_output_folder(out_dir, folders=(RECORD_DIR,), files=(MANIFEST_NAME, NOTICE_NAME, str(BUILD_SIGNAL)))
-    memory_budget_bytes()  # an unusable DECOLLAGE_MEMORY_BUDGET_GB is a usage error now, not an asset error later
-
-
-def plan_build(loaded: LoadedRecipe, out_dir: Path, detailizer_override: str | None = None,
-               only: Callable[[Asset], bool] | None = None, force: bool = False) -> list[PlannedAsset]:
-    """Content keys of the selected assets, and which of them are up to date in ``out_dir``."""
-
-    planned, weight_hashes = [], {}
-    for i, asset in enumerate(loaded.recipe.assets):
-        if only is not None and not only(asset):
-            continue
-        inputs = {n: sha256_file(p) for n, p in _input_files(asset, loaded).items()}
-        name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
-        weights = effective_checkpoint(name, checkpoint)
-        if weights not in weight_hashes:  # hashed once a build, not once an asset (a batch shares one model)
-            weight_hashes[weights] = sha256_file(Path(weights)) if weights and Path(weights).is_file() else None
-        key = asset_key(asset.model_dump(mode="json", by_alias=True), inputs, weight_hashes[weights], name)
-        cached = None if force else valid_record(out_dir, asset.name, key)
-        planned.append(PlannedAsset(i, asset.name, key, cached))
-    return planned
 
 
 def _locate(exc: DecollageError, loaded: LoadedRecipe, index: int, sub: str = "") -> DecollageError:
@@ -238,8 +200,7 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
 
     report.inputs = {
         "entry_sha256": hashlib.sha256(asset.model_dump_json(by_alias=True).encode()).hexdigest(),
-        "files": {name: {"path": str(path), "sha256": sha256_file(path)}
-                  for name, path in _input_files(asset, loaded).items()},
+        "files": [],  # the input closure, once the readers have run
     }
     where, _ = loaded.where(index)
 
@@ -263,10 +224,13 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
         grid, warnings = apply_regions(part_grid, asset.regions, field=f"{where}.regions")
     report.warnings += warnings
 
-    name, checkpoint = _detailizer_of(asset, loaded, detailizer_override)
+    name, checkpoint = detailizer_of(asset, loaded, detailizer_override)
     detailizer = get_detailizer(name, checkpoint, asset.detailize.device)
+    report.inputs["files"] = closure_records(
+        [*((p, "source") for p in source.input_files),
+         *((p, "detailizer") for p in getattr(detailizer, "input_files", ()))], loaded.base_dir)
     with _timed(report, "detailize", progress):
-        fine = detailizer.detailize(grid, seed=asset.detailize.seed)
+        fine = detailizer.detailize(grid, seed=asset.detailize.seed, threads=ASSET_THREADS)
 
     export = asset.export
     provenance = asset_provenance(name, effective_checkpoint(name, checkpoint), fine)
@@ -319,68 +283,3 @@ def _structure(fine, grid) -> dict:
     factor = fine.shape[0] // grid.shape[0]
     strict, loose = strict_loose_iou(fine.occupancy, grid.occupancy, factor)
     return {"strict_iou": round(strict, 4), "loose_iou": round(loose, 4)}
-
-
-# --------------------------------------------------------------------------- tasks run by executors
-
-_LOADED: dict[tuple[str, str], LoadedRecipe] = {}
-
-
-def build_task(recipe_text: str, recipe_path: str, index: int, key: str, out_dir: str,
-               detailizer_override: str | None = None, progress: Progress | None = None) -> AssetReport:
-    """Build one planned asset and record it; a function of plain data, so any executor can run it.
-
-    The parsed recipe is kept per process, so a worker parses each recipe once.
-    """
-    cache_key = (recipe_path, hashlib.sha256(recipe_text.encode()).hexdigest())
-    if cache_key not in _LOADED:
-        path = Path(recipe_path)
-        # The main process checked the expansion against its cap (--max-assets) already.
-        _LOADED[cache_key] = LoadedRecipe(parse_recipe(recipe_text, path, max_assets=None), path, recipe_text)
-    out = Path(out_dir)
-    report = build_asset(_LOADED[cache_key], index, out, progress or Progress(), detailizer_override)
-    if report.status == AssetStatus.BUILT:
-        write_record(out, report.name, key, report.entry())
-    return report
-
-
-def build_recipe(loaded: LoadedRecipe, out_dir: Path, progress: Progress | None = None,
-                 detailizer_override: str | None = None,
-                 only: Callable[[Asset], bool] | None = None, force: bool = False,
-                 executor=None) -> list[AssetReport]:
-    """Check, plan, build what is not up to date, and write ``out_dir/manifest.json`` atomically.
-
-    Returns one report per selected asset in recipe order (``cached`` marks those
-    taken from a valid record). ``executor`` defaults to building in this process.
-    On KeyboardInterrupt the manifest of what finished is written before re-raising.
-    """
-
-    progress = progress or Progress()
-    executor = executor or LocalExecutor(progress)
-    check_output(out_dir)
-    check_recipe(loaded, detailizer_override)
-    plan = plan_build(loaded, out_dir, detailizer_override, only, force)
-    if any(p.cached_entry is None for p in plan):
-        executor.start()  # e.g. connect to a cluster: failing here must leave out_dir untouched
-    ensure_writable_dir(out_dir)
-    remove_stale_temporaries(out_dir)
-    reports: dict[int, AssetReport] = {}
-    for p in plan:
-        if p.cached_entry is not None:
-            reports[p.index] = AssetReport.from_entry(p.index, p.cached_entry)
-            progress.asset_finished(reports[p.index])
-    todo = [p for p in plan if p.cached_entry is None]
-    tasks = [(loaded.text, str(loaded.path), p.index, p.key, str(out_dir), detailizer_override) for p in todo]
-
-    def done(report: AssetReport) -> None:
-        reports[report.index] = report
-        progress.asset_finished(report)
-
-    try:
-        executor.run(build_task, tasks, done, names=[p.name for p in todo])
-    finally:
-        ordered = [reports[p.index] for p in plan if p.index in reports]
-        write_manifest(out_dir, loaded, ordered)
-        write_notice(out_dir, [r.entry() for r in ordered])
-        write_build_signal(out_dir, ordered)
-    return ordered

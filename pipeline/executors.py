@@ -1,14 +1,25 @@
 """Where assets are built: in this process, in local worker processes, or on a Dask cluster.
 
-Every executor runs the same task function (``pipeline.build.build_task``) on
+Every executor runs the same task function (``pipeline.batch.build_task``) on
 plain-data arguments and hands each finished ``AssetReport`` to a callback in
 the main process, in completion order. The build itself never depends on the
-executor: outputs are identical whichever runs them.
+executor: every asset runs its kernels with ``ASSET_THREADS`` threads wherever
+it runs, so its outputs are byte-identical whichever executor and however
+many jobs build it (the learned model's convolutions give other float
+roundings with another thread count; ``tests/pipeline/test_integrity.py``
+compares every output byte of -j 1 and -j 2 builds).
 
-Worker processes import the heavy stack once when they start (their
-initializer) and keep detailizers loaded between assets, so no asset pays for
-imports or model loading. Each worker uses ``cores // jobs`` threads so that
-the workers together do not oversubscribe the machine.
+Stopping: ``run`` records in ``started`` the position of every task handed
+out. On any exception (Ctrl-C's KeyboardInterrupt, a ``--fail-fast`` stop
+raised by ``done``) an executor stops its work before it re-raises: worker
+processes are killed (``pipeline/workers.py``); a cluster's queued tasks are
+cancelled, and its running ones stop at their next lease check
+(``pipeline/lock.py``). A task whose worker died is reported through
+``lost(position, why)``.
+
+Worker processes import the heavy stack once when they start and keep
+detailizers loaded between assets, so no asset pays for imports or model
+loading.
 
 A cluster build runs the tasks on Dask workers (``--executor dask --address
 tcp://scheduler:8786``). Workers must see the recipe's input files and the
@@ -19,32 +30,25 @@ tasks only land on workers started with ``--resources "GPU=1"``.
 
 from __future__ import annotations
 
-import importlib
-import os
 from collections.abc import Callable, Sequence
 from enum import StrEnum
 
 from core.errors import UsageError
+from pipeline.workers import WorkerPool
 
 #: Seconds to wait for a cluster scheduler before giving up.
 CONNECT_TIMEOUT_S = 10
 
+#: CPU threads every asset's kernels run with, wherever it is built (in process, a worker, a cluster).
+#: One: the unit of parallelism is the asset (``--jobs``), and a count that does not depend on the
+#: machine or on the number of jobs keeps the outputs byte-identical.
+ASSET_THREADS = 1
 
-def _worker_init(threads: int, task_module: str) -> None:
-    """Runs once per worker process: pin thread counts, import the heavy stack and the task's module once."""
-    os.environ["OMP_NUM_THREADS"] = str(threads)
-    import numpy  # noqa: F401
-    import trimesh  # noqa: F401
-    from skimage import measure  # noqa: F401
 
-    importlib.import_module(task_module)  # the task function's module and everything it imports
-
-    try:
-        import torch
-
-        torch.set_num_threads(threads)
-    except ImportError:  # torch is only needed by learned detailizers
-        pass
+def _report_lost(lost: Callable[[int, str], None] | None, position: int, why: str) -> None:
+    if lost is None:
+        raise RuntimeError(f"task {position} was lost: {why}")
+    lost(position, why)
 
 
 class LocalExecutor:
@@ -52,48 +56,37 @@ class LocalExecutor:
 
     def __init__(self, progress=None) -> None:
         self.progress = progress
+        self.started: list[int] = []
 
     def start(self) -> None:
         """Nothing to connect to (every executor has ``start``: the build calls it before writing anything)."""
 
-    def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = ()) -> None:
+    def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = (),
+            lost: Callable[[int, str], None] | None = None) -> None:
         for n, args in enumerate(tasks):
             if self.progress is not None:
                 self.progress.asset_started(n, len(tasks), names[n] if names else str(n))
+            self.started.append(n)
             done(fn(*args, progress=self.progress))
 
 
 class ProcessExecutor:
-    """``jobs`` worker processes on this machine (``--jobs N``)."""
+    """``jobs`` worker processes on this machine (``--jobs N``, ``pipeline/workers.py``)."""
 
     def __init__(self, jobs: int) -> None:
         if jobs < 1:
             raise UsageError(f"--jobs must be at least 1, got {jobs}")
         self.jobs = jobs
+        self.started: list[int] = []
 
     def start(self) -> None:
         """Workers start inside ``run``; nothing can fail before it."""
 
-    def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = ()) -> None:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        if not tasks:
-            return
-        workers = min(self.jobs, len(tasks))
-        threads = max(1, (os.cpu_count() or 1) // workers)
-        # spawn: a clean interpreter per worker (fork after threads started is unsafe).
-        context = multiprocessing.get_context("spawn")
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                   initializer=_worker_init, initargs=(threads, fn.__module__))
-        try:
-            futures = [pool.submit(fn, *args) for args in tasks]
-            for future in as_completed(futures):
-                done(future.result())
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
-        pool.shutdown(wait=True)
+    def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = (),
+            lost: Callable[[int, str], None] | None = None) -> None:
+        if tasks:
+            WorkerPool(self.jobs, ASSET_THREADS).run(fn, tasks, done,
+                                                     lambda i, why: _report_lost(lost, i, why), self.started)
 
 
 class DaskExecutor:
@@ -104,6 +97,7 @@ class DaskExecutor:
             raise UsageError("--executor dask needs --address (e.g. tcp://scheduler:8786)")
         self.address = address
         self.gpus_per_task = gpus_per_task
+        self.started: list[int] = []
         self._client = None
 
     def start(self) -> None:
@@ -125,18 +119,30 @@ class DaskExecutor:
             raise UsageError(f"cannot reach the Dask scheduler at {self.address} within {CONNECT_TIMEOUT_S} s "
                              f"({type(exc).__name__})", hint="check --address and that the scheduler runs") from None
 
-    def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = ()) -> None:
+    def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = (),
+            lost: Callable[[int, str], None] | None = None) -> None:
+        """Submit every task; a queued or running task counts as started (the cluster does not say which)."""
         from distributed import as_completed
 
         self.start()
         client, self._client = self._client, None
         resources = {"GPU": self.gpus_per_task} if self.gpus_per_task else None
+        futures = []
         try:
-            futures = [client.submit(fn, *args, key=f"decollage-{names[i] if names else i}-{args[3][:12]}",
-                                     pure=False, resources=resources)
-                       for i, args in enumerate(tasks)]
+            for i, args in enumerate(tasks):
+                futures.append(client.submit(fn, *args, key=f"decollage-{names[i] if names else i}-{args[3][:12]}",
+                                             pure=False, resources=resources))
+                self.started.append(i)
+            position = {future.key: i for i, future in enumerate(futures)}
             for future in as_completed(futures, loop=client.loop):
-                done(future.result())
+                if future.status == "error":
+                    exc = future.exception()
+                    _report_lost(lost, position[future.key], f"{type(exc).__name__}: {exc}")
+                else:
+                    done(future.result())
+        except BaseException:
+            client.cancel(futures)
+            raise
         finally:
             client.close()
 

@@ -1,7 +1,14 @@
 """``manifest.json``: one file per build describing inputs, outputs, geometry and timings.
 
-Format version 1. Paths of outputs are relative to the manifest's folder.
+Format version 2. Paths of outputs are relative to the manifest's folder.
 Axes and units are stated explicitly so that a consumer never has to guess.
+Each asset's ``inputs`` holds ``entry_sha256`` (its resolved recipe entry) and
+``files``, its input closure: one ``{"path", "sha256", "read_by"}`` per file
+its source or detailizer read (``read_by``: ``source`` or ``detailizer``), the
+path relative to the recipe's folder or ``<decollage>/...`` for files shipped
+with this project, ``sha256`` null for a file a reader looked for and did not
+find (``pipeline/cache.py``). Version 1 keyed ``files`` by recipe field and
+listed only the files the recipe names.
 Timings are the only non-deterministic values; they live under ``timings_s``,
 and an asset taken from the cache keeps the entry (timings included) recorded
 when it was built, so rebuilding unchanged inputs rewrites an identical file.
@@ -23,7 +30,7 @@ MANIFEST_NAME = "manifest.json"
 #: Rewritten after every build (also one that changed nothing): the signal a gallery polls to refresh.
 #: At the top level: ``.decollage/`` holds one record per asset, and an asset may be named "build".
 BUILD_SIGNAL = Path("build.json")
-MANIFEST_FORMAT = 1
+MANIFEST_FORMAT = 2
 
 AXES = {"up": "+Y", "front": "+Z", "right": "+X", "units": "m", "convention": "glTF 2.0"}
 

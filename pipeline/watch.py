@@ -35,6 +35,7 @@ from pathlib import Path
 from core.errors import DecollageError
 from core.recipe_loader import LoadedRecipe, load_recipe
 from pipeline.build import input_paths
+from pipeline.cache import closure_paths
 from pipeline.report import AssetReport
 
 #: A rebuild starts after this long without a change to a watched file (milliseconds).
@@ -70,9 +71,7 @@ def watched_files(loaded: LoadedRecipe, reports: list[AssetReport] | None,
     """The files whose change may change an output (see the module docstring), resolved."""
     paths = {loaded.path, *input_paths(loaded, detailizer_override)}
     for report in reports or ():
-        for item in (report.inputs.get("files") or {}).values():
-            if isinstance(item, dict) and item.get("path"):
-                paths.add(Path(item["path"]))
+        paths.update(closure_paths(report.inputs.get("files"), loaded.base_dir))  # every file its build read
         style_set = (report.info.get("detailizer") or {}).get("style_set_path")
         if style_set:
             paths.add(Path(style_set))

@@ -26,7 +26,7 @@ TILE_PX = 320
 
 
 def build(recipe: Path, out: Path, detailizer: str, checkpoint: str | None) -> dict[str, dict]:
-    from pipeline.build import build_recipe
+    from pipeline.batch import build_recipe
     from core.recipe_loader import load_recipe
 
     if checkpoint:  # stands in for the shipped model (e.g. a candidate before it is committed)

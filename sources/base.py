@@ -25,7 +25,11 @@ class PartMeshes:
         parts: part name → ``trimesh.Trimesh`` (vertices in metres). Insertion
             order is the part order; names are unique.
         warnings: human-readable notes for the manifest (e.g. "mesh is not watertight").
-        input_files: files the parts were made from (hashed into the manifest).
+        input_files: every file the source read, the recipe-named one first: recorded by the
+            readers that opened them (a glTF's buffers and images, an OBJ's material library,
+            a script's local modules and data files, a font), including files a reader looked
+            for and did not find. The one list a build's cache key and manifest read
+            (``pipeline/cache.py``): an edit to any of them makes the asset stale.
         fit_height_m: the height that ``fit: height`` maps onto ``grid.resolution``
             voxels, when it is not simply the bounding box's Y extent (text: the
             font's cap height, so every line's capitals get the same voxels whatever
@@ -62,7 +66,7 @@ class PartVoxels:
     style: np.ndarray | None = None
     style_names: tuple[str, ...] = ()
     warnings: list[str] = field(default_factory=list)
-    input_files: list[Path] = field(default_factory=list)
+    input_files: list[Path] = field(default_factory=list)  # as PartMeshes.input_files: the voxel file
 
 
 SourceResult = Union[PartMeshes, PartVoxels]

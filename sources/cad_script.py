@@ -30,10 +30,17 @@ Part names must match ``recipe.NAME_PATTERN`` and be unique. Numbers in the
 script are in ``spec.units``; the script's up axis is ``spec.up_axis`` (CAD's
 Z by default). The script runs with ``__name__ == "decollage_script"`` (so an
 ``if __name__ == "__main__":`` block does not run) and its folder first on
-``sys.path`` (helper modules beside it can be imported: they are reported
-and join ``PartMeshes.input_files`` after the script). The working directory
-is not changed: open data files via ``__file__``. Its printed output is
-discarded.
+``sys.path`` (helper modules beside it can be imported). The working
+directory is not changed: open data files via ``__file__``. Its printed output
+is discarded.
+
+What the script read is recorded where it runs, in the runner's forked child
+(``sources/script_reads.py``): the local modules it imported (its helpers and
+their own local imports, wherever they lie outside the Python installation)
+and the data files it opened for reading. The runner reports them with the
+parts, and they join ``PartMeshes.input_files`` after the script, for both
+engines, so an edit to a helper or a data file makes the asset stale
+(``pipeline/cache.py``).
 
 Engines:
 
@@ -103,7 +110,7 @@ def load(spec: CadSource, base_dir: Path) -> PartMeshes:
     """Run ``spec.script`` in an isolated process and turn what its function returns into canonical part meshes.
 
     Returns:
-        PartMeshes (metres, +Y up) with ``input_files=[script path, local modules it imported...]``.
+        PartMeshes (metres, +Y up) with ``input_files=[script path, local modules and data files it read...]``.
 
     Raises:
         SourceError: missing / unreadable script (field ``script``), missing function
@@ -128,8 +135,7 @@ def load(spec: CadSource, base_dir: Path) -> PartMeshes:
             vertices, faces = _read_part(outdir, entry, name, python)
             parts[name] = vertices_to_part(vertices, faces, spec, name, "script")
     warnings = [w for name, mesh in parts.items() for w in mesh_warnings(name, mesh)]
-    local = [Path(p) for p in result.get("local_modules", []) if isinstance(p, str) and Path(p) != path]
-    return PartMeshes(parts=parts, warnings=warnings, input_files=[path, *local])
+    return PartMeshes(parts=parts, warnings=warnings, input_files=[path, *_read_files(result, path)])
 
 
 def resolve_script(spec: CadSource, base_dir: Path) -> Path:
@@ -321,6 +327,15 @@ def _read_result(outdir: Path, status: dict, spec: CadSource, python: Path) -> d
                       f"return the parts from {function}(); do not end the process")
     return _raise(f"the script's process exited with status {code} before {function}() returned "
                   "(os._exit, or a library that ended the process)", "script", _FIX)
+
+
+def _read_files(result: dict, script: Path) -> list[Path]:
+    """The files the runner's child recorded as read (``read_files``: absolute paths), the script itself left out."""
+    read = result.get("read_files")
+    if not isinstance(read, list):
+        return []
+    files = [Path(p) for p in read if isinstance(p, str) and os.path.isabs(p)]
+    return [p for p in dict.fromkeys(files) if p != script]
 
 
 def _raise(message: str, field: str, hint: str | None):

@@ -28,12 +28,20 @@ that is degenerate once scaled (not finite, under 1 µm or over 1,000 km
 across, every face collapsed: ``sources.frames.check_part_geometry``) is an
 error. Every failure is a ``SourceError`` with ``field="path"``; no exception
 from trimesh escapes.
+
+Companion files (a glTF's external buffers and images, an OBJ's ``mtllib``
+and the textures it names) are read through a resolver that records each file
+it opens, and each file it looked for and did not find (a file created there
+later would change the result): they follow the mesh in ``input_files``, so a
+build's cache sees an edit to any of them (``pipeline/cache.py``).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import re
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -59,7 +67,8 @@ def load(spec: MeshSource, base_dir: Path) -> PartMeshes:
     """Read ``spec.path`` (relative to ``base_dir``) into named parts in the canonical frame."""
     path = resolve_path(spec.path, base_dir)
     ext = path.suffix.lower().lstrip(".")
-    raw = _read_instances(path, ext)
+    companions: list[Path] = []
+    raw = _read_instances(path, ext, read=companions)
     if not raw:
         raise SourceError("mesh has no faces", field="path",
                           hint="the file holds only points or lines; export the surface as triangles")
@@ -81,7 +90,7 @@ def load(spec: MeshSource, base_dir: Path) -> PartMeshes:
     if not parts:
         raise SourceError("mesh has no faces", field="path",
                           hint="every face is degenerate; check the file in a mesh viewer")
-    return PartMeshes(parts=parts, warnings=warnings, input_files=[path])
+    return PartMeshes(parts=parts, warnings=warnings, input_files=[path, *companions])
 
 
 def read_named_parts(path: Path, up_axis: UpAxis | str = UpAxis.Y) -> list[tuple[str, "trimesh.Trimesh"]]:
@@ -143,11 +152,13 @@ def unique_name(name: str, taken) -> str:
 # --------------------------------------------------------------------------- reading
 
 
-def _read_instances(path: Path, ext: str, force: str | None = None) -> list[tuple[str, "trimesh.Trimesh"]]:
+def _read_instances(path: Path, ext: str, force: str | None = None,
+                    read: list[Path] | None = None) -> list[tuple[str, "trimesh.Trimesh"]]:
     """(name, mesh with world transform applied) for every triangle mesh instance in the file.
 
     ``force="scene"`` keeps the node name of a file holding a single named mesh
     (e.g. an OBJ with one ``g`` group) instead of naming it after the file stem.
+    ``read`` gets every companion file the loader opened or looked for (``_recording_resolver``).
     """
     import trimesh
 
@@ -164,7 +175,8 @@ def _read_instances(path: Path, ext: str, force: str | None = None) -> list[tupl
         _check_gltf_json(path)
     try:
         # process=False: _clean does the cleaning, and reports NaN vertices instead of dropping them.
-        loaded = trimesh.load(str(path), file_type=ext, force=force, process=False, **kwargs)
+        resolver = _recording_resolver()(str(path), [] if read is None else read)
+        loaded = trimesh.load(str(path), file_type=ext, force=force, process=False, resolver=resolver, **kwargs)
         instances = _instances(loaded, path.stem)
     except SourceError:
         raise
@@ -175,6 +187,39 @@ def _read_instances(path: Path, ext: str, force: str | None = None) -> list[tupl
         raise SourceError(f"cannot read mesh: no geometry found (is this really a .{ext} file?)", field="path",
                           hint="re-export the mesh")
     return instances
+
+
+@cache
+def _recording_resolver() -> type:
+    """trimesh's file resolver, recording what it reads (a class made once trimesh is imported)."""
+    from trimesh.resolvers import FilePathResolver
+
+    class RecordingResolver(FilePathResolver):
+        """``FilePathResolver`` that appends each file it opens (or looked for in vain) to ``read``."""
+
+        def __init__(self, source: str, read: list[Path]) -> None:
+            super().__init__(source)
+            self.read = read
+
+        def get(self, name: str) -> bytes:
+            # The candidates and their order are FilePathResolver.get's (trimesh 5.2).
+            for candidate in (name.strip(), name.strip().lstrip("/"), os.path.split(name)[-1]):
+                try:
+                    path = self.absolute(candidate)
+                except ValueError:
+                    continue
+                if path.is_file():
+                    data = path.read_bytes()
+                    self.read.append(path)
+                    return data
+            missing = self.absolute(name)  # raises when the name leaves the mesh's folder, as trimesh does
+            self.read.append(missing)
+            raise FileNotFoundError(name)
+
+        def namespaced(self, namespace: str) -> "RecordingResolver":
+            return RecordingResolver(os.path.join(self.parent, namespace, "_"), self.read)
+
+    return RecordingResolver
 
 
 def _obj_options(path: Path) -> dict:

@@ -33,11 +33,14 @@ for debugging).
 What a run leaves in OUTDIR: ``result.json``, written last and atomically, is
 either ``{"error": {"field": "script" | "script_function" | "script_engine",
 "message": ..., "hint": ...}}`` or ``{"complete": true, "parts": [{"name": ...,
-"file": ..., "vertices": V, "faces": F}, ...], "local_modules": [paths]}``.
+"file": ..., "vertices": V, "faces": F}, ...], "read_files": [paths]}``.
 Each part file holds V×3 float64 vertices then F×3 int64 vertex indices,
 little-endian, in the script's units, unmerged as the engine tessellated them.
-``local_modules`` lists the Python files the script imported from its own
-folder (or below it), so that they can join the asset's inputs. No
+``read_files`` lists what the script read while it ran, recorded in the child
+by ``sources/script_reads.py`` (loaded from its file beside this one, since
+this runner imports nothing of decollage by name): the local modules it
+imported, then the data files it opened, absolute and first read first, so
+that they can join the asset's inputs. No
 ``result.json`` means the script ended the process itself (``os._exit``, a
 crash, a kill): the client reports that from the exit status.
 
@@ -53,6 +56,7 @@ tolerance A radians.
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import runpy
@@ -96,6 +100,7 @@ def serve(engine: str) -> int:
     """
     try:
         _import_engine(engine)
+        _script_reads()
     except RunnerError as err:
         _reply({"ready": False, "error": {"field": err.field, "message": err.message, "hint": err.hint}})
         return 1
@@ -209,10 +214,8 @@ def run_request(engine: str, request: dict) -> None:
 def _run(engine: str, request: dict, outdir: Path) -> dict:
     module = _import_engine(engine)
     script = Path(request["script"]).resolve()
-    before = set(sys.modules)
-    result = call_script(script, request["function"])
-    local = sorted({str(Path(m.__file__).resolve()) for name, m in list(sys.modules.items())
-                    if name not in before and _under(getattr(m, "__file__", None), script.parent)})
+    with _script_reads().ScriptReads() as reads:
+        result = call_script(script, request["function"])
     parts = named_shapes(engine, module, result, script, request["function"])
     index = []
     for i, (name, shape) in enumerate(parts):
@@ -220,17 +223,22 @@ def _run(engine: str, request: dict, outdir: Path) -> dict:
         filename = f"part_{i:03d}.bin"
         write_part(outdir / filename, vertices, triangles)
         index.append({"name": name, "file": filename, "vertices": len(vertices), "faces": len(triangles)})
-    return {"complete": True, "parts": index, "local_modules": local}
+    return {"complete": True, "parts": index, "read_files": [str(p) for p in reads.files() if p != script]}
 
 
-def _under(filename, folder: Path) -> bool:
-    if not filename:
-        return False
-    try:
-        Path(filename).resolve().relative_to(folder)
-    except ValueError:
-        return False
-    return True
+_READS_MODULE = None
+
+
+def _script_reads():
+    """``sources/script_reads.py``, loaded from its file (the server loads it once, before forking)."""
+    global _READS_MODULE
+    if _READS_MODULE is None:
+        spec = importlib.util.spec_from_file_location("decollage_script_reads",
+                                                      Path(__file__).resolve().with_name("script_reads.py"))
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        _READS_MODULE = module
+    return _READS_MODULE
 
 
 def _import_engine(engine: str):

@@ -12,7 +12,7 @@ Each case asserts:
   limit or the problem (``words``); no traceback, no "internal error";
 - no partial files: a refused build leaves the output folder as it was (or
   absent), a failed asset leaves only the build-level files (``manifest.json``,
-  ``NOTICE.txt``, ``build.json``);
+  ``NOTICE.txt``, ``build.json``, and the emptied lock in ``.decollage``);
 - bounded time and memory: under the case's ``max_s`` (20 s; scripts, which
   start a CAD engine, 60-90 s) and ``MAX_RSS_MB`` (1 GB) peak RSS.
 
@@ -38,8 +38,9 @@ pytestmark = pytest.mark.e2e
 
 HARNESS = Path(__file__).with_name("hostile_harness.py")
 MAX_RSS_MB = 1024.0
-#: What a build whose assets all failed leaves: the build-level files only.
-BUILD_LEVEL_FILES = ["NOTICE.txt", "build.json", "manifest.json"]
+#: What a build whose assets all failed leaves: the build-level files only, and the output folder's
+#: lock (pipeline/lock.py: left empty once the build is over).
+BUILD_LEVEL_FILES = [".decollage/build.lock", "NOTICE.txt", "build.json", "manifest.json"]
 
 TEXT = "{kind: text, text: A}"
 

@@ -185,7 +185,7 @@ def test_unreachable_cluster_fails_fast_and_clearly(batch, tmp_path):
 
 def test_default_detailizer_key_covers_the_shipped_weights(write_recipe, tmp_path, monkeypatch):
     """An asset that names no checkpoint is rebuilt when the shipped model's bytes change."""
-    from pipeline.build import plan_build
+    from pipeline.batch import plan_build
     from core.recipe_loader import load_recipe
 
     weights = tmp_path / "things.pt"

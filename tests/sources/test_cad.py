@@ -370,22 +370,46 @@ def test_a_script_that_ends_crashes_loops_or_eats_memory_fails_its_asset(tmp_pat
     assert list(load_script(ok).parts) == ["ok"]
 
 
-def test_local_modules_a_script_imports_join_its_input_files(tmp_path):
+def test_local_modules_and_data_files_a_script_reads_join_its_input_files(tmp_path):
+    """Recorded in the runner's child (sources/script_reads.py): modules in import order, then data files."""
     (tmp_path / "helpers").mkdir()
     (tmp_path / "helpers" / "__init__.py").write_text("")
     (tmp_path / "helpers" / "sizes.py").write_text("WIDTH = 3\n")
-    (tmp_path / "shapes.py").write_text("from build123d import Box\ndef box(w):\n    return Box(w, 1, 1)\n")
+    (tmp_path / "shapes.py").write_text("from build123d import Box\ndef box(w, d):\n    return Box(w, d, 1)\n")
+    (tmp_path / "depth.txt").write_text("2")
     path = script_file(tmp_path, """
         import json  # the standard library is not a local module
+        import pathlib
         import shapes
         from helpers.sizes import WIDTH
         def build():
-            return shapes.box(WIDTH)
+            depth = float(pathlib.Path(__file__).with_name("depth.txt").read_text())
+            pathlib.Path(__file__).with_name("scratch.txt").write_text("written by the script: not an input")
+            return shapes.box(WIDTH, depth)
         """)
     pm = load_script(path)
-    assert pm.input_files == [path.resolve(), *sorted(p.resolve() for p in (
-        tmp_path / "helpers" / "__init__.py", tmp_path / "helpers" / "sizes.py", tmp_path / "shapes.py"))]
-    np.testing.assert_allclose(pm.parts["tower"].extents, [3, 1, 1])
+    assert pm.input_files == [path.resolve(), *(p.resolve() for p in (
+        tmp_path / "shapes.py", tmp_path / "helpers" / "__init__.py", tmp_path / "helpers" / "sizes.py",
+        tmp_path / "depth.txt"))]
+    np.testing.assert_allclose(pm.parts["tower"].extents, [3, 1, 2])
+
+
+@pytest.mark.cadquery
+def test_a_cadquery_scripts_local_modules_and_data_files_join_its_input_files(tmp_path):
+    _cadquery_runtime()
+    (tmp_path / "sizes.py").write_text("WIDTH = 30\n")
+    (tmp_path / "height.txt").write_text("20")
+    path = script_file(tmp_path, """
+        import pathlib
+        import cadquery as cq
+        import sizes
+        def build():
+            height = float(pathlib.Path(__file__).with_name("height.txt").read_text())
+            return cq.Workplane("XY").box(sizes.WIDTH, 10, height)
+        """)
+    pm = load_script(path, units="mm", script_engine="cadquery")
+    assert pm.input_files == [path.resolve(), (tmp_path / "sizes.py").resolve(), (tmp_path / "height.txt").resolve()]
+    np.testing.assert_allclose(sorted(pm.parts["tower"].extents), [0.01, 0.02, 0.03], atol=1e-6)
 
 
 def test_what_a_script_starts_is_stopped_and_what_it_prints_stays_out(tmp_path, capfd):
