@@ -9,13 +9,14 @@ Exit codes (``cli/console.py``, ``ExitCode``):
 
 from __future__ import annotations
 
+import os
 import sys
 
 import typer
 from typer.exceptions import TyperException
 
 from cli.bench import bench_command
-from cli.build import build_command
+from cli.build import build_command, build_was_stopped
 from cli.console import ExitCode, literal, stderr
 from cli.eval import eval_command
 from cli.paint import paint_command
@@ -24,6 +25,7 @@ from cli.styles import styles_app
 from cli.train import train_command
 from cli.validate import validate_command
 from cli.view import view_command
+from pipeline.executors import abandoned_work
 
 app = typer.Typer(
     add_completion=False,
@@ -58,7 +60,14 @@ def main(argv: list[str] | None = None) -> None:
     try:
         code = _COMMAND.main(args=argv, standalone_mode=False, prog_name="decollage")
         sys.exit(code if isinstance(code, int) else 0)
-    except SystemExit:
+    except SystemExit as exc:
+        if build_was_stopped() or abandoned_work():
+            # A stopped build has written and closed everything (manifest, records, lock): end at once.
+            # The interpreter's clean-up takes seconds with torch loaded, and must not wait for a kernel
+            # that an abandoned in-process task still runs.
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(exc.code if isinstance(exc.code, int) else ExitCode.INTERRUPTED)
         raise
     except TyperException as exc:  # the command line itself is wrong (click's usage errors, vendored by typer)
         sys.exit(_usage_error(exc))

@@ -92,6 +92,7 @@ def build_command(
     except _Stopped as stop:
         reports = stop.reports
     except BuildInterrupted as interrupted:
+        _STOPPED.received = True
         _report_interruption(interrupted.stopped, out, recipe, time.perf_counter() - started, json_out,
                              "SIGTERM" if term.received else "Ctrl-C")
         raise typer.Exit(ExitCode.TERMINATED if term.received else ExitCode.INTERRUPTED) from None
@@ -186,6 +187,14 @@ def _print_check(plan, json_out: bool) -> None:
 
 class _Signal:
     received = False
+
+
+_STOPPED = _Signal()  # set once a build here was stopped by a signal
+
+
+def build_was_stopped() -> bool:
+    """Whether a build in this process was stopped by Ctrl-C or SIGTERM (its files are all written and closed)."""
+    return _STOPPED.received
 
 
 @contextmanager

@@ -34,6 +34,9 @@ _WRITABLE_HINT = "choose another output folder (--out) or fix its permissions"
 # Unique temporary names within this process; pid separates processes.
 _temp_counter = itertools.count()
 _temp_lock = threading.Lock()
+# Threads whose commits are refused (``forbid_commits``); commits and changes to the set are serialised.
+_commit_lock = threading.Lock()
+_forbidden: set[int] = set()
 
 
 # --------------------------------------------------------------------------- atomic writing
@@ -93,15 +96,20 @@ class AtomicWriter:
         had replaced is gone as well: a clean absence, never a mixed set).
         """
         placed: list[Path] = []
-        for temp, final in self._pending:
-            try:
-                os.replace(temp, final)
-            except OSError as exc:
-                for done in placed:
-                    _remove_quietly(done)
+        with _commit_lock:  # ``forbid_commits`` waits for a commit in progress, never splits it
+            if threading.get_ident() in _forbidden:
                 self.discard()
-                raise _os_error(exc, final) from None
-            placed.append(final)
+                raise ExportError("not written: the build was interrupted", file=self.out_dir,
+                                  hint="build again to finish it")
+            for temp, final in self._pending:
+                try:
+                    os.replace(temp, final)
+                except OSError as exc:
+                    for done in placed:
+                        _remove_quietly(done)
+                    self.discard()
+                    raise _os_error(exc, final) from None
+                placed.append(final)
         done = [final for _, final in self._pending]
         self._pending = []
         return done
@@ -122,6 +130,23 @@ class AtomicWriter:
             self.commit()
         else:
             self.discard()
+
+
+def forbid_commits(thread_id: int) -> None:
+    """Refuse every later ``commit`` from thread ``thread_id``; waits for a commit in progress to end.
+
+    An interrupted build calls this for work it abandons in another thread (a kernel cannot be
+    stopped mid-call) before it writes its manifest, so that work can never land a file
+    afterwards: its next ``commit`` discards its temporaries and raises ``ExportError``.
+    """
+    with _commit_lock:
+        _forbidden.add(thread_id)
+
+
+def allow_commits(thread_id: int) -> None:
+    """Undo ``forbid_commits`` (the abandoned thread calls it as it ends)."""
+    with _commit_lock:
+        _forbidden.discard(thread_id)
 
 
 def write_bytes_atomic(path: Path, data: bytes) -> None:

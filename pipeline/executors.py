@@ -30,14 +30,19 @@ tasks only land on workers started with ``--resources "GPU=1"``.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
 from enum import StrEnum
 
 from core.errors import UsageError
+from core.files import allow_commits, forbid_commits
 from pipeline.workers import WorkerPool
 
 #: Seconds to wait for a cluster scheduler before giving up.
 CONNECT_TIMEOUT_S = 10
+
+#: Seconds between two looks at an in-process task's thread (the main thread stays responsive to signals).
+WAIT_SLICE_S = 0.05
 
 #: CPU threads every asset's kernels run with, wherever it is built (in process, a worker, a cluster).
 #: One: the unit of parallelism is the asset (``--jobs``), and a count that does not depend on the
@@ -52,7 +57,15 @@ def _report_lost(lost: Callable[[int, str], None] | None, position: int, why: st
 
 
 class LocalExecutor:
-    """Builds in this process, one asset after the other (``--jobs 1``), with stage-level progress."""
+    """Builds in this process, one asset after the other (``--jobs 1``), with stage-level progress.
+
+    Each task runs in a thread of its own while the main thread waits on it, so Ctrl-C is answered
+    at once even while a kernel (a convolution, marching cubes) holds that thread in C code for
+    seconds. The interrupted task cannot be stopped mid-call: it is abandoned, its thread may no
+    longer move files into place (``core.files.forbid_commits``), and it stops at its next stage
+    (its lease is gone, ``pipeline/lock.py``). ``abandoned_work()`` says whether such a thread still
+    runs; the command line then ends the process without waiting for it.
+    """
 
     def __init__(self, progress=None) -> None:
         self.progress = progress
@@ -67,7 +80,54 @@ class LocalExecutor:
             if self.progress is not None:
                 self.progress.asset_started(n, len(tasks), names[n] if names else str(n))
             self.started.append(n)
-            done(fn(*args, progress=self.progress))
+            done(_run_in_thread(fn, args, self.progress))
+
+
+_ABANDONED: set[int] = set()  # ids of threads running tasks that a stopped build abandoned
+_ABANDON_LOCK = threading.Lock()
+
+
+def abandoned_work() -> bool:
+    """Whether a task that a stopped in-process build abandoned still runs in this process."""
+    with _ABANDON_LOCK:
+        return bool(_ABANDONED)
+
+
+def _run_in_thread(fn: Callable, args: tuple, progress):
+    """``fn(*args, progress=progress)`` in a new thread; its result or exception, once it ends.
+
+    The wait is on an event, not ``Thread.join``: an interrupted ``join`` marks a running thread
+    as stopped in Python 3.11 (the bpo-45274 fix), and the thread must stay known as running.
+    """
+    outcome: dict = {}
+    ended = threading.Event()
+
+    def target() -> None:
+        try:
+            outcome["result"] = fn(*args, progress=progress)
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread
+            outcome["error"] = exc
+        finally:
+            with _ABANDON_LOCK:
+                ended.set()
+                if threading.get_ident() in _ABANDONED:
+                    allow_commits(threading.get_ident())
+                    _ABANDONED.discard(threading.get_ident())
+
+    thread = threading.Thread(target=target, name="decollage-build", daemon=True)
+    thread.start()
+    try:
+        while not ended.wait(WAIT_SLICE_S):  # short waits: a signal's handler runs between them
+            pass
+    except BaseException:
+        with _ABANDON_LOCK:
+            if not ended.is_set():
+                _ABANDONED.add(thread.ident)
+                forbid_commits(thread.ident)
+        raise
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["result"]
 
 
 class ProcessExecutor:

@@ -34,8 +34,8 @@ from multiprocessing.connection import Connection, wait
 
 from core.processes import die_with_parent, watch_parent
 
-#: Seconds a worker gets to leave after the last task before it is killed.
-CLOSE_TIMEOUT_S = 5.0
+#: Seconds an idle worker gets to leave after the last task before it is killed (it holds nothing to save).
+CLOSE_TIMEOUT_S = 0.5
 
 
 def warm(threads: int, task_module: str) -> None:

@@ -137,7 +137,8 @@ def test_failing_assets_exit_1_without_partial_files(case, write_recipe, tmp_pat
     code, _, stderr = _run(["build", recipe, "-o", out])
     assert code == 1, stderr
     _assert_one_line_error(stderr, recipe, field)
-    assert _files(out) == ["NOTICE.txt", "build.json", "manifest.json"]  # build-level files only
+    assert _files(out) == [".decollage", "NOTICE.txt", "build.json", "manifest.json"]  # build-level files only
+    assert _files(out / ".decollage") == ["build.lock"]  # the lock; no record
     manifest = json.loads((out / "manifest.json").read_text())
     entry = manifest["assets"][0]
     assert entry["status"] == "failed" and field in entry["error"] and entry["outputs"] == {}
@@ -154,7 +155,7 @@ def test_one_bad_asset_does_not_stop_the_others(write_recipe, tmp_path):
     code, stdout, stderr = _run(["build", recipe, "-o", out])
     assert code == 1
     assert "1 built, 0 up to date (cached), 1 failed" in stderr  # a failed asset is not counted as built
-    assert _files(out) == [".decollage", "NOTICE.txt", "build.json", "manifest.json", "word.glb", "word.png"]  # .decollage: build records
+    assert _files(out) == [".decollage", "NOTICE.txt", "build.json", "manifest.json", "word.glb", "word.png"]  # .decollage: records, lock
     summary = json.loads((out / "manifest.json").read_text())["summary"]
     assert summary == {"assets": 2, "built": 1, "failed": 1}
 
