@@ -260,6 +260,8 @@ class DecollageDetailizer:
         gen = self.generator
         if self.device.type == "cpu":
             torch.set_num_threads(threads or cpu_threads())
+        else:  # the same bytes on every run: no autotuned or atomic-add (transposed-conv) kernels
+            torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark = True, False
         with torch.random.fork_rng(devices=[]), torch.inference_mode():
             torch.manual_seed(int(seed))
             inputs = gen.make_inputs(torch.from_numpy(occ_c)[None], torch.from_numpy(parts_c)[None],

@@ -26,7 +26,9 @@ was built, what was stopped in progress and what never started.
 from __future__ import annotations
 
 import hashlib
+import signal
 from collections.abc import Callable
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -216,8 +218,9 @@ def _run(loaded: LoadedRecipe, out_dir: Path, plan: list[PlannedAsset], progress
     try:
         executor.run(build_task, tasks, done, names=[p.name for p in todo], lost=lost)
     except BaseException as exc:
-        stopped = _after_stop(loaded, out_dir, plan, todo, reports, set(executor.started), lock)
-        write_manifest(out_dir, loaded, stopped.reports)
+        with _signals_held():  # a second Ctrl-C must not cut the clean-up short
+            stopped = _after_stop(loaded, out_dir, plan, todo, reports, set(getattr(executor, "started", ())), lock)
+            write_manifest(out_dir, loaded, stopped.reports)
         if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, BuildInterrupted):
             raise BuildInterrupted(stopped) from None
         raise
@@ -231,6 +234,21 @@ def _write_build_files(out_dir: Path, loaded: LoadedRecipe, reports: list[AssetR
     write_manifest(out_dir, loaded, reports)
     write_notice(out_dir, [r.entry() for r in reports])
     write_build_signal(out_dir, reports)
+
+
+@contextmanager
+def _signals_held():
+    """Absorb SIGINT and SIGTERM until the block ends (main thread only): the stop is already under way."""
+    try:
+        previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread: signals are not ours to handle
+        yield
+        return
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _after_stop(loaded: LoadedRecipe, out_dir: Path, plan: list[PlannedAsset], todo: list[PlannedAsset],

@@ -155,7 +155,12 @@ def closure_paths(records: list, base_dir: Path) -> list[Path]:
 
 
 def changed_input(records: list, base_dir: Path, digests: Digests) -> str | None:
-    """The first closure file whose bytes (or presence) differ from its record, as written there; None if none."""
+    """The first closure file whose bytes (or presence) differ from its record, as written there; None if none.
+
+    A malformed closure (not a list of records) counts as changed ("?").
+    """
+    if not isinstance(records, list):
+        return "?"
     for record in records:
         if not isinstance(record, dict) or not isinstance(record.get("path"), str):
             return "?"
@@ -202,7 +207,7 @@ def check_record(out_dir: Path, name: str, key: str, base_dir: Path,
     outputs = entry.get("outputs") or {}
     if entry.get("status") != AssetStatus.BUILT or not outputs:
         return None, "not built yet"
-    changed = changed_input((entry.get("inputs") or {}).get("files", "?"), base_dir, digests)
+    changed = changed_input((entry.get("inputs") or {}).get("files"), base_dir, digests)
     if changed is not None:
         return None, f"input changed: {changed}"
     for out in outputs.values():

@@ -247,17 +247,23 @@ def _all_bytes(out: Path) -> dict[str, bytes]:
     return files
 
 
-def test_jobs_1_and_2_give_byte_identical_outputs_with_the_learned_model(recipe_dir, tmp_path):
+def test_jobs_1_and_2_and_a_cluster_give_byte_identical_outputs_with_the_learned_model(recipe_dir, tmp_path):
     """Every source kind through the shipped model (its convolutions round by thread count: ASSET_THREADS)."""
+    distributed = pytest.importorskip("distributed")
     recipe = _recipe(recipe_dir, "decollage")
-    one, two = tmp_path / "j1", tmp_path / "j2"
+    one, two, dask = tmp_path / "j1", tmp_path / "j2", tmp_path / "dask"
     assert _build(recipe, "-o", one, "--jobs", "1")["summary"]["built"] == 7
     assert _build(recipe, "-o", two, "--jobs", "2")["summary"]["built"] == 7
-    a, b = _all_bytes(one), _all_bytes(two)
-    assert sorted(a) == sorted(b) and len(a) == 15  # 7 GLBs, 7 PNGs, the manifest
-    differ = [name for name in a if a[name] != b[name]]
-    assert differ == []
-    print(f"\ncompared {len(a)} files, {sum(map(len, a.values()))} bytes: identical")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:  # workers with torch's default threads
+        assert _build(recipe, "-o", dask, "--executor", "dask", "--address",
+                      cluster.scheduler_address)["summary"]["built"] == 7
+    a = _all_bytes(one)
+    assert len(a) == 15  # 7 GLBs, 7 PNGs, the manifest
+    for other in (two, dask):
+        b = _all_bytes(other)
+        assert sorted(b) == sorted(a) and [name for name in a if a[name] != b[name]] == [], other.name
+    print(f"\ncompared {len(a)} files ({sum(map(len, a.values()))} bytes) of -j 1 with -j 2 and a cluster: identical")
 
 
 # --------------------------------------------------------------------------- stopping
@@ -360,6 +366,26 @@ def test_kill_9_of_the_parent_leaves_no_worker_alive(recipe_dir, tmp_path):
     assert {p.name for p in (out / ".decollage").glob("*.json")} == records  # nothing written afterwards
     check = _check(recipe, out)
     assert {f"{n}.json" for n in check["up_to_date"]} == records
+
+
+def test_a_cluster_stops_the_tasks_of_a_killed_build(recipe_dir, tmp_path):
+    """The cluster's workers are not the build's to kill: its queued tasks are dropped and its running
+    ones stop at their next stage, since their build no longer holds the folder (pipeline/lock.py)."""
+    distributed = pytest.importorskip("distributed")
+    recipe, out = _slow_batch(recipe_dir), tmp_path / "out"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        proc = _start(recipe, out, "--executor", "dask", "--address", cluster.scheduler_address)
+        _wait_for_first_record(proc, out)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=10)
+        records = {p.name for p in (out / ".decollage").glob("*.json")}
+        time.sleep(5.0)
+        files = sorted(p.name for p in out.iterdir())
+        time.sleep(3.0)
+        assert sorted(p.name for p in out.iterdir()) == files  # nothing runs any more after 5 s
+        assert {p.name for p in (out / ".decollage").glob("*.json")} == records  # nor recorded after the kill
+    assert len(records) < 12
 
 
 def test_sigterm_stops_the_build_like_ctrl_c(recipe_dir, tmp_path):
