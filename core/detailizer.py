@@ -10,7 +10,8 @@ it accepts any name (the non-learned baseline, whose styles only colour regions)
 from __future__ import annotations
 
 import importlib
-from pathlib import Path
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Protocol
 
 from core.errors import DetailizeError
@@ -18,22 +19,22 @@ from core.grid import FineGrid, LabeledGrid
 
 
 class Detailizer(Protocol):
-    """``input_files``: every file the detailizer loaded (its checkpoint, a style set...); a build
-    records them with their sha256 in each asset's input closure (``pipeline/cache.py``), so an
-    edit to any of them makes the asset stale.
+    """What the pipeline calls; two optional parts serve the build's cache and its determinism:
 
-    ``detailize(grid, seed, threads)``: ``threads`` is the CPU thread count for its kernels (None:
-    the detailizer's own default). A learned model's convolutions round differently with another
-    count, so a build passes the same count wherever an asset runs (``pipeline/executors.py``).
+    - ``input_files``: every file the detailizer loaded (its checkpoint, a style set...), when it
+      defines it; a build records them with their sha256 in each asset's input closure
+      (``pipeline/cache.py``), so an edit to any of them makes the asset stale;
+    - ``requested_threads()``: the CPU thread count the caller asks its kernels to use (the build
+      asks for the same count wherever an asset runs: ``pipeline/executors.py``); a detailizer whose
+      output depends on it (a learned model's convolutions round differently) should honour it.
     """
 
     name: str
     learned: bool
     style_names: tuple[str, ...] | None
     part_names: tuple[str, ...] | None
-    input_files: tuple[Path, ...]
 
-    def detailize(self, grid: LabeledGrid, seed: int = 0, threads: int | None = None) -> FineGrid: ...
+    def detailize(self, grid: LabeledGrid, seed: int = 0) -> FineGrid: ...
 
     def describe(self) -> dict: ...
 
@@ -56,6 +57,22 @@ DEFAULT_CHECKPOINTS: dict[str, str] = {
 DEFAULT_DETAILIZER = "decollage"
 
 _CACHE: dict[tuple, Detailizer] = {}
+_THREADS: ContextVar[int | None] = ContextVar("decollage_kernel_threads", default=None)
+
+
+@contextmanager
+def kernel_threads(threads: int):
+    """Ask every ``detailize`` call in this block (this thread or task) to run its kernels with ``threads``."""
+    token = _THREADS.set(threads)
+    try:
+        yield
+    finally:
+        _THREADS.reset(token)
+
+
+def requested_threads() -> int | None:
+    """The thread count ``kernel_threads`` asks for here, or None (the detailizer chooses)."""
+    return _THREADS.get()
 
 
 def known_detailizers() -> list[str]:

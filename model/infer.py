@@ -38,6 +38,7 @@ from model.masks import fill_nearest
 from model.provenance import checkpoint_style_set, exemplar_extras
 from model.upsample import fill_styles_everywhere, nearest_upsample
 from model.windows import blockwise_forward
+from core.detailizer import requested_threads
 from core.errors import DetailizeError
 from core.grid import ISO_LEVEL, FineGrid, LabeledGrid
 from core.recipe import Device
@@ -191,11 +192,12 @@ class DecollageDetailizer:
         """(the set the checkpoint learned from, as a ``StyleSetRecord`` or None; where that came from)."""
         return checkpoint_style_set(self.ckpt.training)
 
-    def detailize(self, grid: LabeledGrid, seed: int = 0, threads: int | None = None) -> FineGrid:
+    def detailize(self, grid: LabeledGrid, seed: int = 0) -> FineGrid:
         """LabeledGrid (X, Y, Z) → FineGrid (f·X, f·Y, f·Z), occupancy float32 in [0, 1].
 
-        ``threads``: CPU threads for the generator (None: ``cpu_threads()``). The output's float
-        rounding depends on it (oneDNN splits its reductions by thread), so equal bytes need equal counts.
+        CPU threads: ``core.detailizer.requested_threads()`` when the caller asks for a count, else
+        ``cpu_threads()``. The output's float rounding depends on it (oneDNN splits its reductions by
+        thread), so equal bytes need equal counts.
 
         Raises:
             DetailizeError: the grid uses a style or part name unknown to the checkpoint.
@@ -210,7 +212,7 @@ class DecollageDetailizer:
         else:
             parts = self._map(grid.part, occ, grid.part_names, self._part_index, "part")
             styles = self._map(grid.style, occ, grid.style_names, self._style_index, "style")
-            fine = self._run(occ, parts, styles, seed, threads)
+            fine = self._run(occ, parts, styles, seed)
         return FineGrid(
             occupancy=fine,
             style=styles_fine,
@@ -239,8 +241,7 @@ class DecollageDetailizer:
         lut = np.array([index.get(n, -1) for n in names] or [-1], dtype=np.int64)
         return np.where(occ, lut[np.clip(values, 0, None)], -1)
 
-    def _run(self, occ: np.ndarray, parts: np.ndarray, styles: np.ndarray, seed: int,
-             threads: int | None = None) -> np.ndarray:
+    def _run(self, occ: np.ndarray, parts: np.ndarray, styles: np.ndarray, seed: int) -> np.ndarray:
         """Run the generator on the occupied bounding box + ``MARGIN`` cells; zero elsewhere.
 
         The crop is what training saw (bbox + one empty coarse cell, padded with empty
@@ -259,7 +260,7 @@ class DecollageDetailizer:
         styles_c = fill_nearest(np.pad(styles[src], pad, constant_values=-1), occ_c)
         gen = self.generator
         if self.device.type == "cpu":
-            torch.set_num_threads(threads or cpu_threads())
+            torch.set_num_threads(requested_threads() or cpu_threads())
         else:  # the same bytes on every run: no autotuned or atomic-add (transposed-conv) kernels
             torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark = True, False
         with torch.random.fork_rng(devices=[]), torch.inference_mode():

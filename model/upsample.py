@@ -79,10 +79,9 @@ class UpsampleDetailizer:
     def describe(self) -> dict:
         return {"name": self.name, "learned": False, "factor": self.factor, "sigma_fine_voxels": self.sigma}
 
-    def detailize(self, grid: LabeledGrid, seed: int = 0, threads: int | None = None) -> FineGrid:
-        """LabeledGrid (X, Y, Z) → FineGrid (16X, 16Y, 16Z); ``seed`` is unused (deterministic), and so is
-        ``threads`` (its matrix products give the same bytes with any BLAS thread count)."""
-        del seed, threads
+    def detailize(self, grid: LabeledGrid, seed: int = 0) -> FineGrid:
+        """LabeledGrid (X, Y, Z) → FineGrid (16X, 16Y, 16Z); ``seed`` is unused (deterministic)."""
+        del seed
         f, occ = self.factor, grid.occupancy
         fine = smooth_upsample(occ, f, self.sigma)
         # Confine the blur to the coarse cells: at iso 0.4 the blurred step would

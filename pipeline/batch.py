@@ -262,7 +262,8 @@ def _after_stop(loaded: LoadedRecipe, out_dir: Path, plan: list[PlannedAsset], t
                 reports[p.index].cached = False
     unfinished = [(n, p) for n, p in enumerate(todo) if p.index not in reports]
     ordered = [reports[p.index] for p in plan if p.index in reports]
-    keep = {out["path"] for r in ordered for out in r.outputs.values()}
+    keep = {out["path"] for r in ordered for out in r.outputs.values()} | {MANIFEST_NAME, NOTICE_NAME,
+                                                                         str(BUILD_SIGNAL)}
     remove_stale_temporaries(out_dir)
     removed = remove_unfinished_outputs(out_dir, [p.name for _, p in unfinished], keep, lock.started_ns)
     return Stopped(reports=ordered, in_progress=[p.name for n, p in unfinished if n in started],

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from core.budget import check_asset_memory
 from core.capture import captured_warnings
-from core.detailizer import effective_checkpoint, get_detailizer
+from core.detailizer import effective_checkpoint, get_detailizer, kernel_threads
 from core.errors import DecollageError, RecipeError, UsageError
 from core.files import InputKind, check_input_file, sha256_file
 from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset
@@ -230,7 +230,8 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
         [*((p, "source") for p in source.input_files),
          *((p, "detailizer") for p in getattr(detailizer, "input_files", ()))], loaded.base_dir)
     with _timed(report, "detailize", progress):
-        fine = detailizer.detailize(grid, seed=asset.detailize.seed, threads=ASSET_THREADS)
+        with kernel_threads(ASSET_THREADS):
+            fine = detailizer.detailize(grid, seed=asset.detailize.seed)
 
     export = asset.export
     provenance = asset_provenance(name, effective_checkpoint(name, checkpoint), fine)

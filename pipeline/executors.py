@@ -9,8 +9,8 @@ many jobs build it (the learned model's convolutions give other float
 roundings with another thread count; ``tests/pipeline/test_integrity.py``
 compares every output byte of -j 1 and -j 2 builds).
 
-Stopping: ``run`` records in ``started`` the position of every task handed
-out. On any exception (Ctrl-C's KeyboardInterrupt, a ``--fail-fast`` stop
+Stopping: ``run`` records in ``started`` the position of every task it handed
+out (anew for each build: ``--watch`` runs many builds on one executor). On any exception (Ctrl-C's KeyboardInterrupt, a ``--fail-fast`` stop
 raised by ``done``) an executor stops its work before it re-raises: worker
 processes are killed (``pipeline/workers.py``); a cluster's queued tasks are
 cancelled, and its running ones stop at their next lease check
@@ -76,6 +76,7 @@ class LocalExecutor:
 
     def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = (),
             lost: Callable[[int, str], None] | None = None) -> None:
+        self.started = []  # an executor may serve several builds (--watch)
         for n, args in enumerate(tasks):
             if self.progress is not None:
                 self.progress.asset_started(n, len(tasks), names[n] if names else str(n))
@@ -144,6 +145,7 @@ class ProcessExecutor:
 
     def run(self, fn: Callable, tasks: Sequence[tuple], done: Callable, names: Sequence[str] = (),
             lost: Callable[[int, str], None] | None = None) -> None:
+        self.started = []
         if tasks:
             WorkerPool(self.jobs, ASSET_THREADS).run(fn, tasks, done,
                                                      lambda i, why: _report_lost(lost, i, why), self.started)
@@ -185,6 +187,7 @@ class DaskExecutor:
         from distributed import as_completed
 
         self.start()
+        self.started = []
         client, self._client = self._client, None
         resources = {"GPU": self.gpus_per_task} if self.gpus_per_task else None
         futures = []

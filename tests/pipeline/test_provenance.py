@@ -15,7 +15,7 @@ from core.provenance import ExemplarCredit, LicenceNeed, licence_need
 from core.recipe_loader import load_recipe
 from model.provenance import exemplar_extras
 from model.upsample import UpsampleDetailizer
-from pipeline.build import build_recipe
+from pipeline.batch import build_recipe
 from pipeline.provenance import NOTICE_NAME, notice_text
 from sources.vox_file import write_vox
 from stylesets.provenance import StyleSetRecord

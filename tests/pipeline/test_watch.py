@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from cli.app import app
 from core.recipe_loader import load_recipe
-from pipeline.build import build_recipe
+from pipeline.batch import build_recipe
 from pipeline.manifest import BUILD_SIGNAL
 from pipeline.watch import Rebuild, watch_build, watched_files
 from sources.vox_file import write_vox
