@@ -21,7 +21,8 @@ shared ``flock`` probe, which fails while the holder keeps its lock). A build
 that ends, normally or interrupted, empties the file before it unlocks, so a
 task still running somewhere (a cluster does not stop a running task when its
 client goes away) stops at its next check instead of writing into a folder
-whose manifest is already written. POSIX only (``fcntl``).
+whose manifest is already written. POSIX only (``fcntl``); on a filesystem
+that refuses locks the build goes on with the holder record alone.
 """
 
 from __future__ import annotations
@@ -131,6 +132,8 @@ class BuildLock:
                         on_wait(holder)
                     waited = True
                     time.sleep(POLL_S)
+                except OSError:  # a filesystem without locks (some network mounts): the holder record still serves
+                    break
             self.previous = _parse(os.pread(fd, 4096, 0))  # a build that did not release: it was killed
             holder = Holder(build=self.build_id, pid=os.getpid(), ticks=start_ticks(os.getpid()),
                             host=socket.gethostname(),
