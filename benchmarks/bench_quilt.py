@@ -420,7 +420,7 @@ def previews(args) -> None:
     from PIL import Image
 
     from core.recipe_loader import load_recipe
-    from pipeline.build import build_recipe
+    from pipeline.batch import build_recipe
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

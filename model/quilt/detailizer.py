@@ -76,6 +76,11 @@ class QuiltDetailizer:
 
     # ------------------------------------------------------------------ protocol
 
+    @property
+    def input_files(self) -> tuple[Path, ...]:
+        """The style set file it copies from (a build records it in each asset's input closure)."""
+        return (Path(self.style_set.path).resolve(),) if self.style_set.path else ()
+
     def describe(self) -> dict:
         s = self.style_set
         return {

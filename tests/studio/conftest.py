@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from core.recipe_loader import load_recipe
-from pipeline.build import build_recipe
+from pipeline.batch import build_recipe
 from studio.http import App, make_server, url_of
 
 CHROMIUM = Path("/usr/bin/chromium")

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from core.recipe_loader import load_recipe
-from pipeline.build import build_recipe, check_recipe
+from pipeline.batch import build_recipe
+from pipeline.build import check_recipe
 from studio.gallery import gallery_app
 from studio.painter import PaintSession, painter_app
 from tests.studio.conftest import drawn_fraction, serving, wait_js
