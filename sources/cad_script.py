@@ -37,10 +37,11 @@ is discarded.
 What the script read is recorded where it runs, in the runner's forked child
 (``sources/script_reads.py``): the local modules it imported (its helpers and
 their own local imports, wherever they lie outside the Python installation)
-and the data files it opened for reading. The runner reports them with the
-parts, and they join ``PartMeshes.input_files`` after the script, for both
-engines, so an edit to a helper or a data file makes the asset stale
-(``pipeline/cache.py``).
+and the data files it opened for reading (or tried to, and found missing).
+The runner reports them with the parts, and they join
+``PartMeshes.input_files`` after the script, for both engines, so an edit to
+a helper or a data file, or a missing file that appears, makes the asset
+stale (``pipeline/cache.py``).
 
 Engines:
 

@@ -17,12 +17,17 @@ with the parts. Afterwards ``files()`` lists, first read first:
   fresh forks, so there it never happens);
 - **data files**: every regular file opened for reading from Python in the
   recording thread during the run (the ``open`` audit event, PEP 578), from
-  the script or a library it calls (``numpy.load``...).
+  the script or a library it calls (``numpy.load``...);
+- **absent files**: a path the run tried to open for reading that did not
+  exist (``try: open("extra.csv")``), as ``mesh.py``'s resolver records a
+  missing companion: creating the file later would change the result, so the
+  cache records it as absent (``pipeline/cache.py``, sha256 None).
 
 Not recorded, as tool state rather than inputs: files of the Python
 installation, of this project's packages, under ``/dev``, ``/proc`` or
 ``/sys``, on a hidden path (``~/.cache/...``), compiled caches, files the run
-opened for writing, and files gone after the run (temporaries).
+opened for writing (temporaries it made and read back), and paths that are
+neither a regular file nor absent (folders, devices).
 
 Standard library only, and no import of decollage: the runner loads this file
 by its path, under this project's interpreter (build123d) or the cadquery
@@ -51,11 +56,14 @@ def _excluded_roots() -> tuple[str, ...]:
     return tuple(sorted({os.path.realpath(r) + os.sep for r in roots}))
 
 
-def _is_input(path: str, roots: tuple[str, ...]) -> bool:
-    """Whether ``path`` (absolute, real) can be a user's input rather than tool state."""
+def _is_input(path: str, roots: tuple[str, ...], absent_too: bool = False) -> bool:
+    """Whether ``path`` (absolute, real) can be a user's input rather than tool state: a regular file,
+    or with ``absent_too`` nothing at all (a file the run looked for in vain)."""
     if (path + os.sep).startswith(roots) or path.endswith((".pyc", ".pyo")):
         return False
-    return not any(part.startswith(".") for part in Path(path).parts[1:]) and os.path.isfile(path)
+    if any(part.startswith(".") for part in Path(path).parts[1:]):
+        return False
+    return os.path.isfile(path) or (absent_too and not os.path.lexists(path))
 
 
 def _audit(event: str, args: tuple) -> None:
@@ -106,10 +114,12 @@ class ScriptReads:
                     _local_modules.add(name)
                     modules.append(real)
         written = {os.path.realpath(p) for p in self.written}
-        data = [real for real in map(os.path.realpath, self.opened) if real not in written and _is_input(real, roots)]
+        data = [real for real in map(os.path.realpath, self.opened)
+                if real not in written and _is_input(real, roots, absent_too=True)]
         seen: set[str] = set()
         self._files = [Path(p) for p in [*modules, *data] if not (p in seen or seen.add(p))]
 
     def files(self) -> list[Path]:
-        """The files read, absolute: local modules first (in import order), then data files (in open order)."""
+        """The files read, absolute: local modules first (in import order), then data files (in open order,
+        absent ones among them)."""
         return list(self._files)

@@ -39,8 +39,8 @@ little-endian, in the script's units, unmerged as the engine tessellated them.
 ``read_files`` lists what the script read while it ran, recorded in the child
 by ``sources/script_reads.py`` (loaded from its file beside this one, since
 this runner imports nothing of decollage by name): the local modules it
-imported, then the data files it opened, absolute and first read first, so
-that they can join the asset's inputs. No
+imported, then the data files it opened (and those it looked for in vain),
+absolute and first read first, so that they can join the asset's inputs. No
 ``result.json`` means the script ended the process itself (``os._exit``, a
 crash, a kill): the client reports that from the exit status.
 

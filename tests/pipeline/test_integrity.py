@@ -199,6 +199,47 @@ def test_editing_a_script_helper_makes_the_asset_stale_and_rebuilds_it(recipe_di
     assert _check(recipe, out)["reasons"].get("scripted") is None
 
 
+OPTIONAL_SCRIPT = """
+import pathlib
+import build123d as bd
+import helper
+
+def build():
+    try:
+        depth = float(pathlib.Path(__file__).with_name("extra.txt").read_text())
+    except FileNotFoundError:
+        depth = 1.0
+    return {"block": bd.Box(helper.SIZE, 1.0, depth)}
+"""
+
+
+def test_a_file_a_script_looked_for_in_vain_is_recorded_absent_and_creating_it_makes_the_asset_stale(
+        recipe_dir, tmp_path):
+    """The script runs in the runner's forked child; what it read (and missed) comes back into the closure."""
+    (recipe_dir / "optional.py").write_text(OPTIONAL_SCRIPT)
+    recipe = recipe_dir / "optional.yaml"
+    recipe.write_text("""
+version: 1
+assets:
+  - name: optional
+    source: {kind: cad, script: optional.py}
+    grid: {resolution: 8}
+    regions: [{part: bottom, style: townhouse}]
+    detailize: {detailizer: upsample}
+    export: {max_triangles: 2000, preview: false}
+""")
+    out = tmp_path / "out"
+    _build(recipe, "-o", out)
+    files = _manifest_entry(out, "optional")["inputs"]["files"]
+    assert [f["path"] for f in files] == ["optional.py", "helper.py", "extra.txt"]
+    assert files[2] == {"path": "extra.txt", "sha256": None, "read_by": "source"}
+    assert _check(recipe, out)["reasons"].get("optional") is None
+    (recipe_dir / "extra.txt").write_text("2.5")
+    assert _check(recipe, out)["reasons"]["optional"] == "input changed: extra.txt"
+    _build(recipe, "-o", out)
+    assert max(_size_m(out, "optional")) == pytest.approx(2.5, abs=0.05)  # the block is 2.5 m deep now
+
+
 def test_editing_a_material_library_or_adding_a_missing_one_makes_the_asset_stale(recipe_dir, tmp_path):
     recipe, out = _recipe(recipe_dir), tmp_path / "out"
     _build(recipe, "-o", out, "--only", "crate")

@@ -141,7 +141,11 @@ def test_script_reads_records_local_modules_and_data_files_only(tmp_path, monkey
         (tmp_path / "data.txt").read_text()
         (tmp_path / "scratch.txt").write_text("written, then read back: not an input")
         (tmp_path / "scratch.txt").read_text()
-    assert reads.files() == [tmp_path / "helper_for_reads.py", tmp_path / "data.txt"]
+        with pytest.raises(FileNotFoundError):  # looked for in vain: recorded, as absent
+            (tmp_path / "optional.txt").read_text()
+        with pytest.raises(IsADirectoryError):  # a folder is not an input
+            open(tmp_path)
+    assert reads.files() == [tmp_path / "helper_for_reads.py", tmp_path / "data.txt", tmp_path / "optional.txt"]
     with ScriptReads() as again:  # a second run imports (and records) the helper again
         import helper_for_reads  # noqa: F401,F811
     assert again.files() == [tmp_path / "helper_for_reads.py"]

@@ -371,7 +371,8 @@ def test_a_script_that_ends_crashes_loops_or_eats_memory_fails_its_asset(tmp_pat
 
 
 def test_local_modules_and_data_files_a_script_reads_join_its_input_files(tmp_path):
-    """Recorded in the runner's child (sources/script_reads.py): modules in import order, then data files."""
+    """Recorded in the runner's child (sources/script_reads.py): modules in import order, then data files
+    (one of them absent)."""
     (tmp_path / "helpers").mkdir()
     (tmp_path / "helpers" / "__init__.py").write_text("")
     (tmp_path / "helpers" / "sizes.py").write_text("WIDTH = 3\n")
@@ -385,12 +386,16 @@ def test_local_modules_and_data_files_a_script_reads_join_its_input_files(tmp_pa
         def build():
             depth = float(pathlib.Path(__file__).with_name("depth.txt").read_text())
             pathlib.Path(__file__).with_name("scratch.txt").write_text("written by the script: not an input")
+            try:
+                depth += float(pathlib.Path(__file__).with_name("extra.txt").read_text())
+            except FileNotFoundError:
+                pass
             return shapes.box(WIDTH, depth)
         """)
     pm = load_script(path)
     assert pm.input_files == [path.resolve(), *(p.resolve() for p in (
         tmp_path / "shapes.py", tmp_path / "helpers" / "__init__.py", tmp_path / "helpers" / "sizes.py",
-        tmp_path / "depth.txt"))]
+        tmp_path / "depth.txt", tmp_path / "extra.txt"))]  # extra.txt: looked for in vain, recorded as absent
     np.testing.assert_allclose(pm.parts["tower"].extents, [3, 1, 2])
 
 
