@@ -33,7 +33,10 @@ Companion files (a glTF's external buffers and images, an OBJ's ``mtllib``
 and the textures it names) are read through a resolver that records each file
 it opens, and each file it looked for and did not find (a file created there
 later would change the result): they follow the mesh in ``input_files``, so a
-build's cache sees an edit to any of them (``pipeline/cache.py``).
+build's cache sees an edit to any of them (``pipeline/cache.py``). Each is
+held to the mesh file's own limits before it is read (a regular file within
+``InputKind.MESH``'s size limit), so a buffer the file names cannot make the
+build read without bound.
 """
 
 from __future__ import annotations
@@ -209,9 +212,9 @@ def _recording_resolver() -> type:
                 except ValueError:
                     continue
                 if path.is_file():
-                    data = path.read_bytes()
                     self.read.append(path)
-                    return data
+                    check_input_file(path, InputKind.MESH, field="path")  # the mesh's own limits
+                    return path.read_bytes()
             missing = self.absolute(name)  # raises when the name leaves the mesh's folder, as trimesh does
             self.read.append(missing)
             raise FileNotFoundError(name)

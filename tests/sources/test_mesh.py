@@ -231,3 +231,15 @@ def test_devices_pipes_and_oversized_files_are_refused_before_reading(tmp_path, 
     monkeypatch.setenv("DECOLLAGE_MAX_MESH_MB", "0.0001")
     err = _error(_spec("box.stl"), tmp_path)
     assert "limit for mesh files" in err.message and "DECOLLAGE_MAX_MESH_MB" in err.hint
+
+
+def test_a_gltf_buffer_over_the_mesh_limit_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    """Companion files (sources/mesh.py's recording resolver) are held to the mesh file's own size limit."""
+    for name, data in _box().export(file_type="gltf").items():
+        (tmp_path / ("box.gltf" if name == "model.gltf" else name)).write_bytes(data)
+    buffer = next(tmp_path.glob("*.bin"))
+    with open(buffer, "r+b") as handle:
+        handle.truncate(3 << 20)  # sparse: 3 MB of zeros after the real buffer
+    monkeypatch.setenv("DECOLLAGE_MAX_MESH_MB", "1")
+    err = _error(_spec("box.gltf"), tmp_path)
+    assert buffer.name in err.message and "1 MB limit" in err.message and "DECOLLAGE_MAX_MESH_MB" in err.hint
