@@ -195,10 +195,15 @@ def find_cadquery_python() -> Path:
 
 
 class _Runner:
-    """One warm ``script_runner.py serve ENGINE`` process; ``run`` sends a request and waits for its answer."""
+    """One warm ``script_runner.py serve ENGINE`` process; ``run`` sends a request and waits for its answer.
+
+    One request at a time: the protocol is one answer line per request line, so threads that share a
+    runner (a threaded cluster worker, an in-process task still running after its build stopped) take turns.
+    """
 
     def __init__(self, python: Path, engine: str) -> None:
         self.python, self.engine, self.owner = python, engine, os.getpid()
+        self.turn = threading.Lock()
         self.hint = CADQUERY_INSTALL_HINT if engine == "cadquery" else "reinstall with `bash scripts/install.sh`"
         env = dict(os.environ)
         if engine == "cadquery":  # another venv: our PYTHONPATH/PYTHONHOME would leak this venv's OCP into it
@@ -225,14 +230,15 @@ class _Runner:
         return self.owner == os.getpid() and self.proc.poll() is None
 
     def run(self, request: dict, timeout_s: float) -> dict:
-        try:
-            self.proc.stdin.write((json.dumps(request) + "\n").encode())
-            self.proc.stdin.flush()
-        except OSError:
-            self.close()
-            raise SourceError(f"the {self.engine} script runner stopped unexpectedly", field="script_engine",
-                              hint=self.hint) from None
-        return self._answer(timeout_s + 30.0)
+        with self.turn:
+            try:
+                self.proc.stdin.write((json.dumps(request) + "\n").encode())
+                self.proc.stdin.flush()
+            except (OSError, ValueError):  # ValueError: closed by a request that found the runner dead
+                self.close()
+                raise SourceError(f"the {self.engine} script runner stopped unexpectedly", field="script_engine",
+                                  hint=self.hint) from None
+            return self._answer(timeout_s + 30.0)
 
     def _answer(self, timeout_s: float) -> dict:
         """The runner's next JSON line; a dead or silent runner is closed and reported."""

@@ -6,6 +6,7 @@ import math
 import os
 import sys
 import textwrap
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -415,6 +416,17 @@ def test_a_cadquery_scripts_local_modules_and_data_files_join_its_input_files(tm
     pm = load_script(path, units="mm", script_engine="cadquery")
     assert pm.input_files == [path.resolve(), (tmp_path / "sizes.py").resolve(), (tmp_path / "height.txt").resolve()]
     np.testing.assert_allclose(sorted(pm.parts["tower"].extents), [0.01, 0.02, 0.03], atol=1e-6)
+
+
+def test_threads_sharing_the_warm_runner_take_turns(tmp_path):
+    """One answer line per request line: two threads of one process must not read each other's answers."""
+    paths = [script_file(tmp_path, f"from build123d import Box\ndef build():\n    return Box({i + 1}, 1, 1)\n",
+                         name=f"s{i}.py") for i in range(4)]
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        results = list(pool.map(load_script, paths))
+    for i, (path, pm) in enumerate(zip(paths, results)):
+        assert list(pm.parts) == [f"s{i}"] and pm.input_files == [path.resolve()]
+        assert max(pm.parts[f"s{i}"].extents) == pytest.approx(i + 1)
 
 
 def test_what_a_script_starts_is_stopped_and_what_it_prints_stays_out(tmp_path, capfd):
