@@ -33,6 +33,7 @@ from __future__ import annotations
 import os
 import platform
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -90,6 +91,19 @@ class _Timer:
 
     def add(self, key: str, seconds: float) -> None:
         self.totals[key] = self.totals.get(key, 0.0) + seconds
+
+
+@contextmanager
+def _one_thread():
+    """Torch on one thread inside (the splatting renderer is slower on two contended cores)."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 def pick_outputs(outputs, limit: int | None) -> list:
@@ -159,7 +173,8 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
         t = time.perf_counter()
         real, fake = ViewBank(cls_cfg.n_views, cls_cfg.test_views), ViewBank(cls_cfg.n_views, cls_cfg.test_views)
         for e in range(len(names)):
-            real.add(render_views(exemplar(e), cls_cfg.n_views, seed=REAL_VIEW_SEED + e))
+            with _one_thread():
+                real.add(render_views(exemplar(e), cls_cfg.n_views, seed=REAL_VIEW_SEED + e))
         timer.add("render_real_s", time.perf_counter() - t)
 
     kinds = {cid: info.get("kind", "?") for cid, info in protocol.content_info.items()}
@@ -176,7 +191,8 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
         records.add(out.id, binary, lambda pos: patch_owners(pos, regions, UPSAMPLE), seed=out.index)
         t2 = time.perf_counter()
         if fake is not None:
-            fake.add(render_views(torch.from_numpy(binary), cls_cfg.n_views, seed=out.index))
+            with _one_thread():
+                fake.add(render_views(torch.from_numpy(binary), cls_cfg.n_views, seed=out.index))
         t3 = time.perf_counter()
         timer.add("detailize_s", t1 - t0)
         timer.add("patches_s", t2 - t1)
@@ -204,8 +220,9 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
             case_records.add(case.id, binary, case.exemplar, seed=n)
             if m_real is not None and case.held_out:
                 seed = 200_000 + n  # the same views of the true shape and of the output
-                m_real.add(render_views(case.fine, cls_cfg.n_views, seed=seed))
-                m_fake.add(render_views(torch.from_numpy(binary), cls_cfg.n_views, seed=seed))
+                with _one_thread():
+                    m_real.add(render_views(case.fine, cls_cfg.n_views, seed=seed))
+                    m_fake.add(render_views(torch.from_numpy(binary), cls_cfg.n_views, seed=seed))
             t2 = time.perf_counter()
             timer.add("selfrec_detailize_s", t1 - t0)
             timer.add("selfrec_figures_s", t2 - t1)

@@ -17,8 +17,8 @@ the exemplar as every patch's owner):
   ISO_LEVEL) and the true fine shape;
 * LP-detail and LP-IOU against the own exemplar;
 * Chamfer distance between the two surfaces, in fine voxels: the mean of the
-  two directed mean nearest-neighbour distances between surface voxels
-  (``CHAMFER_POINTS`` seeded samples a side).
+  two directed mean nearest-neighbour distances between ``CHAMFER_POINTS``
+  seeded samples of each surface's voxels.
 
 The augmented cases are also the shape-matched Cls's real shapes (their true
 fine shapes) and fake shapes (the detailizer's outputs from their coarse
@@ -122,8 +122,9 @@ def surface_points(occ: np.ndarray) -> np.ndarray:
 def chamfer(output: np.ndarray, truth: np.ndarray, n: int = CHAMFER_POINTS, seed: int = 0) -> float | None:
     """Symmetric Chamfer distance between the surfaces of two bool grids, in voxels (None if one is empty).
 
-    (mean over sampled surface voxels of O of the distance to the nearest surface voxel of T,
-    plus the same from T to O) / 2; up to ``n`` voxels sampled a side, seeded.
+    (mean over the sampled surface voxels of O of the distance to the nearest sampled surface
+    voxel of T, plus the same from T to O) / 2; up to ``n`` voxels sampled a side, seeded (with
+    fewer surface voxels than ``n`` it is exact; sampling adds at most the samples' spacing).
     """
     from scipy.spatial import cKDTree
 
@@ -133,8 +134,8 @@ def chamfer(output: np.ndarray, truth: np.ndarray, n: int = CHAMFER_POINTS, seed
     rng = np.random.default_rng(seed)
     pick = (lambda pts: pts if len(pts) <= n else pts[rng.choice(len(pts), n, replace=False)])
     sa, sb = pick(a), pick(b)
-    d_ab, _ = cKDTree(b).query(sa, k=1, workers=1)
-    d_ba, _ = cKDTree(a).query(sb, k=1, workers=1)
+    d_ab, _ = cKDTree(sb).query(sa, k=1, workers=1)
+    d_ba, _ = cKDTree(sa).query(sb, k=1, workers=1)
     return float((d_ab.mean() + d_ba.mean()) / 2)
 
 
