@@ -342,3 +342,27 @@ def test_markdown_names_the_ablation_a_checkpoint_was_trained_as():
     assert "### Evaluation: decollage (row.pt), ablation `decor_gan` on p" in markdown(report({"ablation": "decor_gan"}))
     assert "### Evaluation: decollage (row.pt) on p" in markdown(report({"ablation": "full"}))
     assert "### Evaluation: decollage (row.pt) on p" in markdown(report({}))
+
+
+def test_contact_sheet_has_one_column_per_detailizer_and_fixed_rows(tiny, tmp_path):
+    from PIL import Image
+
+    from evaluation.contact_sheet import CELL, HEADER_H, LABEL_W, N_MIXED_ROWS, N_SINGLE_ROWS, sheet_rows
+
+    p = load_protocol(tiny)
+    sset = __import__("evaluation.protocol", fromlist=["x"]).resolve_protocol_set(p)
+    outputs, cases = sheet_rows(p, sset)
+    assert [o.mixed for o in outputs] == [False] * N_SINGLE_ROWS + [True] * N_MIXED_ROWS
+    assert {o.content for o in outputs} <= set(p.split["test"])
+    assert len(cases) == 3 and all(c.held_out for c in cases)  # one per category (the tiny set has 3)
+    assert sheet_rows(p, sset)[0] == outputs  # fixed
+    res = RUNNER.invoke(app, ["eval", "--sheet", str(tmp_path / "docs" / "sheet.png"), "--protocol", str(tiny),
+                              "--sheet-detailizers", "upsample,upsample", "--threads", "1", "--device", "cpu"])
+    assert res.exit_code == 0, res.output
+    img = Image.open(tmp_path / "docs" / "sheet.png")
+    assert img.size == (LABEL_W + CELL * 3, HEADER_H + CELL * (len(outputs) + len(cases)))
+    pixels = np.asarray(img)
+    first_cell = pixels[HEADER_H:HEADER_H + CELL, LABEL_W:LABEL_W + CELL]
+    assert (first_cell < 255).mean() > 0.02  # a shape was drawn
+    truth_of_first_output = pixels[HEADER_H + 1:HEADER_H + CELL, LABEL_W + 2 * CELL:]  # below the row line
+    assert (truth_of_first_output == 255).all()  # protocol outputs have no true shape
