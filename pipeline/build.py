@@ -32,7 +32,7 @@ from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset
 from core.recipe_loader import LoadedRecipe
 from core.structure import strict_loose_iou
 from geometry.voxelize import mesh_grid_shape, voxelize
-from pipeline.cache import closure_records
+from pipeline.cache import closure_records, portable_path
 from pipeline.engines import make_collision, make_lods
 from pipeline.executors import ASSET_THREADS
 from pipeline.export import apply_pivot, export_asset
@@ -255,7 +255,7 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
     report.info = {
         "source_kind": asset.source.kind,
         **({"variant": asset.variant} if asset.variant else {}),
-        "detailizer": detailizer.describe(),
+        "detailizer": portable_description(detailizer.describe(), loaded.base_dir),
         "provenance": provenance,
         **({"vox": vox_record} if vox_record else {}),
         "coarse_grid": {
@@ -272,6 +272,24 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
         "engine": {"profile": export.profile.value, "lod_triangles": [len(m.faces) for m in (mesh, *lods)],
                    "collision": export.collision.value, "collision_pieces": len(collision)},
     }
+
+
+#: Keys of a detailizer's ``describe()`` that hold a file path (the manifest writes them portably).
+DESCRIBED_PATH_KEYS = ("checkpoint", "style_set_path")
+
+
+def portable_description(description: dict, base_dir: Path) -> dict:
+    """A detailizer's ``describe()`` with its file paths written like the input closure's (``portable_path``).
+
+    A checkpoint or style set inside the recipe's folder becomes relative to it, one shipped with this
+    project ``<decollage>/...``: two checkouts of the same commit write the same manifest. The file's
+    bytes are identified by its sha256 in ``inputs.files``.
+    """
+    out = dict(description)
+    for key in DESCRIBED_PATH_KEYS:
+        if isinstance(out.get(key), str):
+            out[key] = portable_path(Path(out[key]), base_dir)
+    return out
 
 
 def _structure(fine, grid) -> dict:
