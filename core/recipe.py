@@ -431,9 +431,10 @@ class GridSettings(_Strict):
     fit: Optional[FitMode] = Field(None, description="Default: 'height' for text, 'longest' otherwise.")
     voxel_size_m: Optional[VoxelMetres] = Field(None, description="Only with fit: voxel_size.")
     max_cells: int = Field(
-        256, ge=4, le=1024,
-        description="Largest allowed coarse grid side (memory guard: the fine grid is 16× larger per axis; "
-                    "256 cells fit a ~20-letter line of text in about 1 GB).")
+        1024, ge=4, le=1024,
+        description="Largest allowed coarse grid side. Grids longer than 128 cells along x (long text) are "
+                    "detailized and meshed block by block, so their memory does not grow with their length; "
+                    "the per-asset memory estimate (core/budget.py) guards the other sides.")
     min_coverage: float = Field(0.5, gt=0, le=1, description="Fraction of a cell a shape must fill to occupy it.")
     keep_thin: bool = Field(False, description="Keep parts thinner than a voxel (at least one voxel each).")
 

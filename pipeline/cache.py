@@ -50,7 +50,7 @@ RECORD_DIR = ".decollage"
 RECORD_FORMAT = 3
 
 #: Distributions whose versions change the bytes of the outputs.
-KEY_LIBRARIES = ("numpy", "scipy", "scikit-image", "trimesh", "fast-simplification", "fonttools", "manifold3d",
+KEY_LIBRARIES = ("numpy", "scipy", "scikit-image", "trimesh", "fast-simplification", "meshoptimizer", "fonttools", "manifold3d",
                  "shapely", "mapbox-earcut", "build123d", "torch", "Pillow")
 
 #: Prefix of closure paths inside this project's own folder (the folder holding ``core/``).
