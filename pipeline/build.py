@@ -235,7 +235,7 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
     progress.stage("detailize")
     with kernel_threads(ASSET_THREADS):  # detailize and mesh block by block (pipeline/chunks.py)
         detailed = detailize_and_mesh(grid, lambda g: detailizer.detailize(g, seed=asset.detailize.seed),
-                                      MeshSettings.from_export(export), report.timings_s)
+                                      MeshSettings.from_export(export, grid.occupancy), report.timings_s)
     for stage in ("detailize", "mesh"):
         report.timings_s[stage] = round(report.timings_s.get(stage, 0.0), 3)
     mesh = detailed.mesh
@@ -250,7 +250,7 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
                                              preview_size_px=export.preview_size_px if export.preview else None,
                                              glb_material=export.glb_material, profile=export.profile,
                                              lods=lods, collision=collision, asset_extras=glb_extras(provenance),
-                                             extra_files=vox_jobs)
+                                             extra_files=vox_jobs, compression=export.compression)
 
     report.outputs = {
         kind: {"path": path.name, "sha256": sha256_file(path), "bytes": path.stat().st_size}

@@ -28,7 +28,7 @@ import numpy as np
 
 from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR, FineGrid, LabeledGrid
 from core.structure import iou_from_counts, structure_counts
-from pipeline.mesh import MeshSettings, Piece, mesh_piece, to_trimesh
+from pipeline.mesh import MeshSettings, Piece, coarse_surface_faces, mesh_piece, to_trimesh
 
 if TYPE_CHECKING:
     import trimesh
@@ -98,12 +98,7 @@ def budget_shares(occupancy: np.ndarray, chunks: list[Chunk], total: int | None)
     """Each block's share of ``total`` triangles, in proportion to its coarse surface (None: no budget)."""
     if total is None or len(chunks) == 1:
         return [total] * len(chunks)
-    padded = np.pad(occupancy, 1)
-    faces = np.zeros(occupancy.shape, dtype=np.int64)
-    for axis in range(3):
-        for step in (-1, 1):
-            faces += ~np.roll(padded, step, axis=axis)[1:-1, 1:-1, 1:-1] & occupancy
-    per_column = faces.sum(axis=(1, 2))
+    per_column = coarse_surface_faces(occupancy).sum(axis=(1, 2))
     surface = np.array([per_column[c.start:c.stop].sum() for c in chunks], dtype=np.float64)
     weights = surface / max(surface.sum(), 1.0)
     return [max(4, int(total * w)) for w in weights]

@@ -29,7 +29,7 @@ import numpy as np
 
 from core.errors import MeshingError
 from core.grid import ISO_LEVEL, FineGrid
-from core.recipe import ExportSettings
+from core.recipe import AssetUse, ExportSettings
 from pipeline.palette import palette_rgba
 
 if TYPE_CHECKING:
@@ -49,6 +49,35 @@ DECIMATE_MAX_ERROR = 1.0
 # voxel lands in the occupied voxel next to the surface, whose style is the
 # detailizer's own choice rather than the fill of an empty neighbour.
 _STYLE_PROBE_VOXELS = 0.5
+
+
+#: The ``auto`` triangle budget (``triangle_budget``): triangles per exposed coarse voxel face, the most and
+#: the fewest triangles, per ``export.use``. A coarse face is 16 × 16 fine voxels, about 500 triangles out of
+#: marching cubes; docs/benchmarks.md gives the surface deviation each budget costs.
+TRIANGLES_PER_COARSE_FACE = {AssetUse.HERO: 64, AssetUse.PROP: 32, AssetUse.BACKGROUND: 8}
+MAX_AUTO_TRIANGLES = {AssetUse.HERO: 200_000, AssetUse.PROP: 60_000, AssetUse.BACKGROUND: 12_000}
+MIN_AUTO_TRIANGLES = 2_000
+
+
+def coarse_surface_faces(occupancy: np.ndarray) -> np.ndarray:
+    """(X, Y, Z) int64: per occupied coarse cell, how many of its six faces touch an empty cell (or the border)."""
+    padded = np.pad(occupancy, 1)
+    faces = np.zeros(occupancy.shape, dtype=np.int64)
+    for axis in range(3):
+        for step in (-1, 1):
+            faces += ~np.roll(padded, step, axis=axis)[1:-1, 1:-1, 1:-1] & occupancy
+    return faces
+
+
+def triangle_budget(max_triangles: int | str | None, use: AssetUse, occupancy: np.ndarray) -> int | None:
+    """The asset's triangle budget: ``export.max_triangles`` when it is a number (or None: no decimation);
+    for ``"auto"``, ``TRIANGLES_PER_COARSE_FACE[use]`` × the coarse grid's exposed faces, clamped to
+    ``[MIN_AUTO_TRIANGLES, MAX_AUTO_TRIANGLES[use]]``."""
+    if max_triangles != "auto":
+        return max_triangles
+    use = AssetUse(use)
+    wanted = TRIANGLES_PER_COARSE_FACE[use] * int(coarse_surface_faces(np.asarray(occupancy, dtype=bool)).sum())
+    return int(min(max(wanted, MIN_AUTO_TRIANGLES), MAX_AUTO_TRIANGLES[use]))
 
 
 @dataclass(frozen=True)
@@ -73,11 +102,16 @@ class MeshSettings:
             raise ValueError("max_triangles must be >= 4 (a tetrahedron) or None")
 
     @classmethod
-    def from_export(cls, export: "ExportSettings") -> "MeshSettings":
-        """The meshing part of a recipe's ``export`` settings."""
+    def from_export(cls, export: "ExportSettings", occupancy: np.ndarray | None = None) -> "MeshSettings":
+        """The meshing part of a recipe's ``export`` settings; ``occupancy`` (the coarse grid's) sets an
+        ``auto`` budget (``triangle_budget``; without it, ``auto`` means the hero cap)."""
+        budget = export.max_triangles
+        if budget == "auto":
+            budget = (triangle_budget(budget, export.use, occupancy) if occupancy is not None
+                      else MAX_AUTO_TRIANGLES[AssetUse.HERO])
         return cls(
             taubin_iterations=export.taubin_iterations,
-            max_triangles=export.max_triangles,
+            max_triangles=budget,
             vertex_colors=export.vertex_colors,
         )
 
