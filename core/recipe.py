@@ -154,6 +154,29 @@ class Device(str, Enum):
     CUDA = "cuda"
 
 
+class AssetUse(str, Enum):
+    """What an asset is for in a game; sets its default triangle budget (pipeline/mesh.py's ``triangle_budget``).
+
+    hero: close-ups, the player's focus; prop: ordinary objects (the default); background: distant scenery.
+    """
+
+    HERO = "hero"
+    PROP = "prop"
+    BACKGROUND = "background"
+
+
+class GlbCompression(str, Enum):
+    """How GLB files store their geometry.
+
+    none: plain float32 attributes (every glTF reader loads them);
+    meshopt: quantized attributes (KHR_mesh_quantization) compressed with EXT_meshopt_compression
+    (pipeline/glb_meshopt.py), about a tenth of the size; readers need meshopt's decoder.
+    """
+
+    NONE = "none"
+    MESHOPT = "meshopt"
+
+
 class VoxExport(str, Enum):
     """Which grid of an asset ``export.vox`` writes as a MagicaVoxel file (pipeline/vox_export.py)."""
 
@@ -431,9 +454,10 @@ class GridSettings(_Strict):
     fit: Optional[FitMode] = Field(None, description="Default: 'height' for text, 'longest' otherwise.")
     voxel_size_m: Optional[VoxelMetres] = Field(None, description="Only with fit: voxel_size.")
     max_cells: int = Field(
-        256, ge=4, le=1024,
-        description="Largest allowed coarse grid side (memory guard: the fine grid is 16× larger per axis; "
-                    "256 cells fit a ~20-letter line of text in about 1 GB).")
+        1024, ge=4, le=1024,
+        description="Largest allowed coarse grid side. Grids longer than 128 cells along x (long text) are "
+                    "detailized and meshed block by block, so their memory does not grow with their length; "
+                    "the per-asset memory estimate (core/budget.py) guards the other sides.")
     min_coverage: float = Field(0.5, gt=0, le=1, description="Fraction of a cell a shape must fill to occupy it.")
     keep_thin: bool = Field(False, description="Keep parts thinner than a voxel (at least one voxel each).")
 
@@ -530,10 +554,15 @@ class ExportSettings(_Strict):
     preview: bool = True
     preview_size_px: int = Field(512, ge=64, le=4096)
     taubin_iterations: int = Field(0, ge=0, le=200, description="Taubin smoothing passes; 0 = off.")
-    max_triangles: Optional[int] = Field(150_000, ge=4, le=100_000_000,
-                                         description="Decimate above this; null = never.")
+    max_triangles: Optional[Union[int, Literal["auto"]]] = Field(
+        "auto", description="Decimate above this many triangles; 'auto' = a budget from the asset's coarse surface "
+                            "and its 'use' (pipeline/mesh.py's triangle_budget); null = never.")
+    use: AssetUse = Field(AssetUse.PROP, description="hero, prop or background: sets the 'auto' triangle budget.")
     pivot: Pivot = Pivot.BOTTOM_CENTER
     vertex_colors: bool = True
+    compression: GlbCompression = Field(GlbCompression.NONE, description="GLB geometry: 'none' (plain, every "
+                                        "reader) or 'meshopt' (quantized + EXT_meshopt_compression, ~10× smaller; "
+                                        "readers need meshopt's decoder, as three.js, Unity glTFast, Godot 4 have).")
     glb_material: bool = Field(False, description="Give GLBs a white matte material, for viewers whose default "
                                "glTF material (fully metallic) shows vertex colours too dark.")
     profile: EngineProfile = Field(EngineProfile.GENERIC, description="Engine conventions for names, LODs, "
@@ -545,6 +574,13 @@ class ExportSettings(_Strict):
     collision: CollisionKind = CollisionKind.NONE
     vox: list[VoxExport] = Field([], description="Also write <name>.coarse.vox and/or <name>.fine.vox "
                                  "(MagicaVoxel) to touch the asset up in a voxel editor.")
+
+    @field_validator("max_triangles")
+    @classmethod
+    def _triangle_count(cls, v: int | str | None) -> int | str | None:
+        if isinstance(v, int) and not 4 <= v <= 100_000_000:
+            raise ValueError("Input should be greater than or equal to 4 and at most 100000000 (or 'auto', or null)")
+        return v
 
     @field_validator("lods")
     @classmethod
