@@ -519,34 +519,26 @@ class DetailizeSettings(_Strict):
     detailizer: str = Field(DEFAULT_DETAILIZER, description="'quilt' (the default; non-learned: copies and joins "
                             "the style exemplars' real detail), 'decollage' (the learned model; the shipped weights "
                             "unless 'checkpoint' names others) or 'upsample' (the non-learned baseline).")
-    checkpoint: Optional[str] = Field(None, max_length=MAX_PATH_CHARS,
-                                      description="Checkpoint file for the learned 'decollage' detailizer "
-                                      "(default: the shipped weights).")
-    style_set: Optional[str] = Field(None, max_length=MAX_PATH_CHARS,
-                                     description="The style set 'quilt' copies from: a built-in set name (things, "
-                                     "furniture...), a set made with 'decollage styles import', or a .npz set file "
-                                     "(default: things).")
+    checkpoint: Optional[str] = Field(None, max_length=MAX_PATH_CHARS, description="Checkpoint file for "
+                                      "'decollage' (default: the shipped weights).")
+    style_set: Optional[str] = Field(None, max_length=MAX_PATH_CHARS, description="The style set 'quilt' copies "
+                                     "from: built-in (things, furniture...), imported, or a .npz file (default: things).")
     seed: int = Field(0, ge=0, le=MAX_SEED)
     device: Device = Device.AUTO
 
     @model_validator(mode="after")
     def _data_file_fits_the_detailizer(self) -> "DetailizeSettings":
-        copies = self.detailizer in STYLE_SET_DETAILIZERS
-        if copies and self.checkpoint is not None:
-            raise ValueError(f"'{self.detailizer}' copies from a style set and loads no checkpoint: "
-                             "write 'style_set: <set name or .npz file>' instead of 'checkpoint'")
-        if not copies and self.style_set is not None:
-            raise ValueError(f"'style_set' is for {', '.join(sorted(STYLE_SET_DETAILIZERS))}; '{self.detailizer}' "
-                             "takes its styles from its checkpoint (remove 'style_set')")
+        wrong = "checkpoint" if self.detailizer in STYLE_SET_DETAILIZERS else "style_set"
+        if getattr(self, wrong) is not None:
+            raise ValueError(f"'{self.detailizer}' takes no {wrong} (remove '{wrong}'): 'quilt' copies from a "
+                             "'style_set', the learned model loads a 'checkpoint'")
         return self
 
     def data_file(self, detailizer: str) -> tuple[str, Optional[str]]:
-        """(field name, recipe value) of the file ``detailizer`` loads: ``style_set`` for a detailizer that
-        copies from a style set, else ``checkpoint``. ``detailizer`` may differ from ``self.detailizer``
-        (a command line's ``--detailizer``); the other kind's field is then not used."""
-        if detailizer in STYLE_SET_DETAILIZERS:
-            return "style_set", self.style_set if self.detailizer == detailizer else None
-        return "checkpoint", self.checkpoint if self.detailizer == detailizer else None
+        """(field, recipe value) of the file ``detailizer`` loads: its ``style_set`` or ``checkpoint``; the value
+        is None when ``detailizer`` is not the recipe's own (a command line's ``--detailizer``)."""
+        field = "style_set" if detailizer in STYLE_SET_DETAILIZERS else "checkpoint"
+        return field, getattr(self, field) if detailizer == self.detailizer else None
 
 
 class ExportSettings(_Strict):
