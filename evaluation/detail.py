@@ -144,8 +144,8 @@ class PatchRecords:
                                                        "sd_desc")))
         else:
             empty = np.zeros((0, _PACKED), np.uint8)
-            self.queries = Queries(empty, np.zeros(0, np.int64), np.zeros((0, 8)), np.zeros((0, 2 * _PACKED), np.uint8),
-                                   np.zeros(0, np.int64), np.zeros((0, 8)))
+            self.queries = Queries(empty, np.zeros(0, np.int64), np.zeros((0, 8), np.uint8),
+                                   np.zeros((0, 2 * _PACKED), np.uint8), np.zeros(0, np.int64), np.zeros((0, 8), np.uint8))
         self.output = np.concatenate([np.full(len(p[1]), p[0], np.int32) for p in parts]) if parts \
             else np.zeros(0, np.int32)
         self.owner = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0, np.int16)

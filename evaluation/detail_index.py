@@ -185,8 +185,8 @@ class Queries:
     """Packed query patches and their descriptors.
 
     Attributes:
-        occ_bits: (m, 216) uint8; occ_count: (m,) int64; occ_desc: (m, 8) float64.
-        sd_bits: (m, 432) uint8; surf_count: (m,) int64; sd_desc: (m, 8) float64.
+        occ_bits: (m, 216) uint8; occ_count: (m,) int64; occ_desc: (m, 8) uint8 octant counts.
+        sd_bits: (m, 432) uint8; surf_count: (m,) int64; sd_desc: (m, 8) uint8 surface octant counts.
     """
 
     occ_bits: np.ndarray
@@ -204,8 +204,9 @@ def make_queries(words: tuple[np.ndarray, np.ndarray, np.ndarray], positions: np
     """Queries at candidate ``positions`` (m, 3) of a shape given by its ``packed_patch_words``."""
     occ, surf, dil = (extract_packed(w, positions) for w in words)
     sd = np.concatenate([surf, dil], axis=1)
-    return Queries(occ, np.bitwise_count(occ).sum(axis=1, dtype=np.int64), occupancy_descriptor(occ),
-                   sd, np.bitwise_count(surf).sum(axis=1, dtype=np.int64), surface_descriptor(sd))
+    # octant counts are at most 6³ = 216: kept as uint8, widened when a tree is queried
+    return Queries(occ, np.bitwise_count(occ).sum(axis=1, dtype=np.int64), occupancy_descriptor(occ).astype(np.uint8),
+                   sd, np.bitwise_count(surf).sum(axis=1, dtype=np.int64), surface_descriptor(sd).astype(np.uint8))
 
 
 @dataclass
@@ -235,7 +236,7 @@ def _knn_pass(q: Queries, t: ExemplarPatches, todo: np.ndarray, k: int, radius: 
     """Check the k nearest rows inside each query's ball; set ``found``; return (len(todo),) 'ball full'."""
     n = len(t.occ_count)
     k = min(k, n)
-    dist, nn = t.occ_tree.query(q.occ_desc[todo], k=k, p=1, distance_upper_bound=float(radius[todo].max()))
+    dist, nn = t.occ_tree.query(q.occ_desc[todo].astype(np.float64), k=k, p=1, distance_upper_bound=float(radius[todo].max()))
     dist, nn = dist.reshape(len(todo), k), nn.reshape(len(todo), k)
     ok = (nn < n) & (dist <= radius[todo][:, None])
     qi = np.broadcast_to(todo[:, None], ok.shape)[ok]
@@ -304,7 +305,7 @@ def f_matches(q: Queries, t: ExemplarPatches, which: np.ndarray | None = None) -
     if len(todo):
         k = min(K_F, n)
         radius = F_RADIUS * q.surf_count[todo]
-        dist, nn = t.sd_tree.query(q.sd_desc[todo], k=k, p=1, distance_upper_bound=float(radius.max()))
+        dist, nn = t.sd_tree.query(q.sd_desc[todo].astype(np.float64), k=k, p=1, distance_upper_bound=float(radius.max()))
         dist, nn = dist.reshape(len(todo), k), nn.reshape(len(todo), k)
         ok = (nn < n) & (dist <= radius[:, None])
         qi = np.broadcast_to(todo[:, None], ok.shape)[ok]
