@@ -545,7 +545,12 @@ class ExportSettings(_Strict):
     formats: list[ExportFormat] = Field([ExportFormat.GLB], min_length=1)
     preview: bool = True
     preview_size_px: int = Field(512, ge=64, le=4096)
-    taubin_iterations: int = Field(0, ge=0, le=200, description="Taubin smoothing passes; 0 = off.")
+    taubin_iterations: int = Field(8, ge=0, le=200, description="Taubin smoothing passes (irons out the "
+                                   "stair steps of a near-binary fine grid); 0 = off.")
+    taubin_max_shift_voxels: Optional[float] = Field(
+        0.5, gt=0, le=16, description="While smoothing, no vertex moves farther than this many fine voxels from "
+                                       "where marching cubes put it (irons out terraces, keeps larger detail); "
+                                       "null = unbounded.")
     max_triangles: Optional[Union[int, Literal["auto"]]] = Field(
         "auto", description="Decimate above this many triangles; 'auto' = a budget from the asset's coarse surface "
                             "and its 'use' (pipeline/mesh.py's triangle_budget); null = never.")

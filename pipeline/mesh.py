@@ -89,17 +89,22 @@ class MeshSettings:
             inflate step); 0 = off.
         max_triangles: decimate to at most this many triangles; None = never.
         vertex_colors: colour vertices by style (palette.py); off = no colours.
+        taubin_max_shift: no vertex moves farther than this (fine voxels, per axis) from where marching
+            cubes put it while smoothing (``taubin_smooth``); None = unbounded.
     """
 
     taubin_iterations: int = 0
     max_triangles: int | None = 150_000
     vertex_colors: bool = True
+    taubin_max_shift: float | None = None
 
     def __post_init__(self) -> None:
         if self.taubin_iterations < 0:
             raise ValueError("taubin_iterations must be >= 0")
         if self.max_triangles is not None and self.max_triangles < 4:
             raise ValueError("max_triangles must be >= 4 (a tetrahedron) or None")
+        if self.taubin_max_shift is not None and not self.taubin_max_shift > 0:
+            raise ValueError("taubin_max_shift must be > 0 or None")
 
     @classmethod
     def from_export(cls, export: "ExportSettings", occupancy: np.ndarray | None = None) -> "MeshSettings":
@@ -113,6 +118,7 @@ class MeshSettings:
             taubin_iterations=export.taubin_iterations,
             max_triangles=budget,
             vertex_colors=export.vertex_colors,
+            taubin_max_shift=export.taubin_max_shift_voxels,
         )
 
 
@@ -177,7 +183,7 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
     verts += start  # back to the block's sample indices
     fixed = _open_side_vertices(verts, occupancy.shape[0], open_x)
     if settings.taubin_iterations > 0:
-        verts = taubin_smooth(verts, faces, settings.taubin_iterations, fixed)
+        verts = taubin_smooth(verts, faces, settings.taubin_iterations, fixed, settings.taubin_max_shift)
     if max_triangles is not None and len(faces) > max_triangles:
         verts, faces = decimate(verts, faces, max_triangles, lock_border=fixed is not None)
     verts[:, 0] += x_offset
@@ -286,27 +292,38 @@ def marching_cubes(volume: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarr
     return verts.astype(np.float64), np.ascontiguousarray(faces[:, ::-1], dtype=np.int64)
 
 
-def taubin_smooth(verts: np.ndarray, faces: np.ndarray, iterations: int,
-                  fixed: np.ndarray | None = None) -> np.ndarray:
+def taubin_smooth(verts: np.ndarray, faces: np.ndarray, iterations: int, fixed: np.ndarray | None = None,
+                  max_shift: float | None = None) -> np.ndarray:
     """Taubin λ|μ smoothing (uniform Laplacian over edge neighbours); (V, 3) new vertices, same units.
 
     ``iterations`` passes of one shrink (λ) and one inflate (μ) step; vertices where ``fixed`` (V,) is
-    True do not move (block boundaries).
+    True do not move (block boundaries). With ``max_shift`` (voxels), no vertex ends up farther than that
+    from where marching cubes put it along any axis: the staircase of a near-binary field (whose true
+    surface is anywhere within half a voxel of it) is ironed out, while features larger than a voxel
+    (an exemplar's window frames, a tile's edge) keep their place and depth.
     """
     from scipy import sparse
 
     n = len(verts)
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    adjacency = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
-    adjacency = ((adjacency + adjacency.T) > 0).astype(np.float64)
-    degree = np.asarray(adjacency.sum(axis=1)).ravel()
-    inv_degree = np.where(degree > 0, 1.0 / np.maximum(degree, 1), 0.0)[:, None]
-    out = np.array(verts, dtype=np.float64)
-    movable = np.ones((n, 1)) if fixed is None else (~fixed)[:, None].astype(np.float64)
+    a, b = faces.T.astype(np.int32), np.roll(faces, -1, axis=1).T.astype(np.int32)
+    rows, cols = np.concatenate([a.ravel(), b.ravel()]), np.concatenate([b.ravel(), a.ravel()])
+    adjacency = sparse.csr_matrix((np.ones(len(rows), dtype=np.float32), (rows, cols)), shape=(n, n))
+    adjacency.sum_duplicates()
+    adjacency.data[:] = 1.0  # each neighbour once, however many faces share the edge
+    degree = np.diff(adjacency.indptr).astype(np.float32)
+    inv_degree = (np.where(degree > 0, 1.0 / np.maximum(degree, 1), 0.0)[:, None]).astype(np.float32)
+    start = np.asarray(verts, dtype=np.float64)
+    out = start.astype(np.float32)
+    movable = np.ones((n, 1), np.float32) if fixed is None else (~fixed)[:, None].astype(np.float32)
     for _ in range(iterations):
         for weight in (_TAUBIN_LAMBDA, -_TAUBIN_MU):
-            out += weight * movable * (adjacency @ out * inv_degree - out)
-    return out
+            out += np.float32(weight) * movable * (adjacency @ out * inv_degree - out)
+        if max_shift is not None:
+            np.clip(out, start - max_shift, start + max_shift, out=out)
+    result = out.astype(np.float64)
+    if fixed is not None:
+        result[fixed] = start[fixed]  # bit for bit: the neighbouring block welds to these
+    return result
 
 
 def decimate(verts: np.ndarray, faces: np.ndarray, target: int,
