@@ -23,6 +23,7 @@ from evaluation.benchmarking import (
     REPO,
     bench_assets,
     measure_detailizer,
+    reference_workload_seconds,
     train_iteration_seconds,
     write_doc_section,
 )
@@ -75,9 +76,10 @@ def _bench(checkpoint, out, recipes, repeats, train_iterations, assets, threads,
             rows.append(measure_detailizer(which, device, repeats=max(repeats, 3), threads=threads))
         except RuntimeError as exc:
             raise DetailizeError(f"timing {which} on {device} failed: {exc}") from None
-    asset_rows = []
+    asset_rows, reference = [], None
     if assets:
         say("example assets end to end …")
+        reference = reference_workload_seconds()
         asset_rows = bench_assets(recipes or [REPO / "recipes" / "showcase.yaml"], repeats, progress=say)
     train = None
     if train_iterations:
@@ -85,15 +87,15 @@ def _bench(checkpoint, out, recipes, repeats, train_iterations, assets, threads,
         say(f"training: {train_iterations} + 1 iterations per schedule on the 'things' set …")
         train = train_iteration_seconds(resolve_style_set("things"), iterations=train_iterations,
                                         device="cuda" if torch.cuda.is_available() else "cpu")
-    text = bench_markdown(machine, rows, asset_rows, train, learned)
+    text = bench_markdown(machine, rows, asset_rows, train, learned, reference)
     write_doc_section(out, "bench", text)
     typer.echo(text)
     say(f"wrote the 'bench' section of {out}")
 
 
 def bench_markdown(machine: dict, rows: list[dict], asset_rows: list[dict], train: dict | None,
-                   learned: str) -> str:
-    """The bench section as markdown."""
+                   learned: str, reference: dict | None = None) -> str:
+    """The bench section as markdown; ``reference`` (``reference_workload_seconds``) turns asset times into ratios."""
     from datetime import datetime, timezone
 
     label = {"random-lean": "decollage, lean layout, random weights (timing only; no trained model yet)",
@@ -121,18 +123,25 @@ def bench_markdown(machine: dict, rows: list[dict], asset_rows: list[dict], trai
                      f"{'–' if r['peak_gpu_gb'] is None else format(r['peak_gpu_gb'], '.2f')} | "
                      f"{r['params'] or '–'} |")
     if asset_rows:
+        ref = reference["median_s"] if reference else None
+        stages = ("source", "voxelize", "regions", "detailize", "mesh", "engine", "export")
         lines += ["", "### Example assets end to end (source → GLB + preview)", "",
                   f"Median of {asset_rows[0]['repeats']} builds after a warm-up, seconds; each asset with its "
-                  "recipe's detailizer.", "",
-                  "| recipe | asset | detailizer | fine grid | " + " | ".join(
-                      ("source", "voxelize", "regions", "detailize", "mesh", "export")) + " | total | triangles |",
-                  "|---|---|---|---|" + "---|" * 8]
+                  "recipe's detailizer."
+                  + (f" Reference workload (marching cubes of a 256³ sphere field, scikit-image) in the same run: "
+                     f"{ref:.3f} s (load average {reference['load_average']}); × ref = total / reference."
+                     if ref else ""), "",
+                  "| recipe | asset | detailizer | fine grid | " + " | ".join(stages)
+                  + " | total | × ref | triangles | GLB KB |",
+                  "|---|---|---|---|" + "---|" * (len(stages) + 4)]
         for a in asset_rows:
             st = a["stages_s"]
+            glb = a.get("glb_bytes")
+            ratio = f"{a['total_s'] / ref:.1f}" if ref else "–"
+            size = f"{glb / 1024:.0f}" if glb else "–"
             lines.append(f"| {a['recipe']} | {a['asset']} | {a['detailizer']} | {'×'.join(map(str, a['fine_grid']))} | "
-                         + " | ".join(f"{st[s]:.2f}" for s in ("source", "voxelize", "regions", "detailize", "mesh",
-                                                                 "export"))
-                         + f" | {a['total_s']:.2f} | {a['triangles']} |")
+                         + " | ".join(f"{st.get(s, 0.0):.2f}" for s in stages)
+                         + f" | {a['total_s']:.2f} | {ratio} | {a['triangles']} | {size} |")
     if train:
         lines += ["", "### Training", "",
                   f"`model.train.Trainer` on the 'things' set, {train['layout']} layout, R = {train['resolution']}, "

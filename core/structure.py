@@ -56,10 +56,20 @@ def strict_loose_iou(output, coarse, factor: int = UPSAMPLE_FACTOR) -> tuple[flo
             f"output shape {tuple(out.shape)} must be factor {factor} × coarse shape "
             f"{tuple(c.shape)} = {expected}"
         )
-    d = coarse_of(out, factor)
-    inter = int((d & c).sum())
-    union = int((d | c).sum())
-    n_c = int(c.sum())
+    return iou_from_counts(*structure_counts(out, c, factor))
+
+
+def structure_counts(output: np.ndarray, coarse: np.ndarray, factor: int) -> tuple[int, int, int]:
+    """(|D∧C|, |D∨C|, |C|) of a bool fine ``output`` (factor × ``coarse``'s shape) against bool ``coarse``.
+
+    Counts add up over disjoint blocks of a grid (an asset detailized block by block).
+    """
+    d = coarse_of(output, factor)
+    return int((d & coarse).sum()), int((d | coarse).sum()), int(coarse.sum())
+
+
+def iou_from_counts(inter: int, union: int, n_c: int) -> tuple[float, float]:
+    """(strict, loose) from ``structure_counts`` (see ``strict_loose_iou`` for the empty cases)."""
     if union == 0:
         return 1.0, 1.0
     loose = inter / n_c if n_c else 0.0

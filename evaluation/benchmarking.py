@@ -15,6 +15,8 @@ Used by ``decollage bench`` (``cli/bench.py``) and by the scripts
 * ``train_iteration_seconds`` — a few ``model.train.Trainer`` iterations on a
   style set, after one warm-up, with the early (4 reconstruction steps) and
   the later (1 step) schedules.
+* ``reference_workload_seconds`` — the fixed reference workload (marching cubes of a 256³
+  sphere field), timed in the same run as the other figures so that they can be read as ratios.
 * ``write_doc_section`` — replace or append a marked section of a markdown
   file (``<!-- decollage:KEY:begin -->`` … ``<!-- decollage:KEY:end -->``), so
   the bench figures and the evaluation tables share ``docs/benchmarks.md``.
@@ -30,7 +32,37 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 REPO = Path(__file__).resolve().parents[1]
-STAGES = ("source", "voxelize", "regions", "detailize", "mesh", "export")
+STAGES = ("source", "voxelize", "regions", "detailize", "mesh", "engine", "export")
+
+#: The reference workload's grid side and sphere radius (voxels): a fixed task that readers on other
+#: machines can time to compare ratios rather than seconds.
+REFERENCE_SIDE, REFERENCE_RADIUS = 256, 100.0
+
+
+def reference_workload_seconds(repeats: int = 5) -> dict:
+    """The reference workload: scikit-image marching cubes (Lewiner, level = radius) of a 256³ float32
+    field of distance from the centre, median of ``repeats`` runs after a warm-up.
+
+    Returns ``{"median_s", "min_s", "faces", "repeats", "load_average"}`` (the load average when it started;
+    other jobs on the machine slow every figure of the same run alike, which the ratios cancel).
+    """
+    import os
+
+    import numpy as np
+    from skimage import measure
+
+    load = [round(v, 2) for v in os.getloadavg()] if hasattr(os, "getloadavg") else None
+    axis = np.arange(REFERENCE_SIDE, dtype=np.float32) - (REFERENCE_SIDE - 1) / 2
+    field = np.sqrt(axis[:, None, None] ** 2 + axis[None, :, None] ** 2 + axis[None, None, :] ** 2)
+    times, faces = [], 0
+    for run in range(repeats + 1):
+        start = time.perf_counter()
+        _verts, tris, _n, _v = measure.marching_cubes(field, level=REFERENCE_RADIUS, method="lewiner")
+        if run:  # the first run warms caches up
+            times.append(time.perf_counter() - start)
+        faces = len(tris)
+    return {"median_s": statistics.median(times), "min_s": min(times), "faces": faces, "repeats": repeats,
+            "load_average": load}
 
 
 def house_grid(style_names: tuple[str, str], part_names: tuple[str, str]):
@@ -149,9 +181,10 @@ def bench_assets(recipes: Sequence[Path], repeats: int = 3,
                 runs = [build_asset(loaded, index, Path(tmp), Progress()) for _ in range(repeats)]
                 if any(r.status != "built" for r in runs):
                     raise RuntimeError(f"{asset.name} failed: {next(r.error for r in runs if r.status != 'built')}")
-                medians = {s: statistics.median(r.timings_s[s] for r in runs) for s in STAGES}
+                medians = {s: statistics.median(r.timings_s.get(s, 0.0) for r in runs) for s in STAGES}
                 rows.append({"recipe": Path(recipe).name, "asset": asset.name, "stages_s": medians,
                              "total_s": sum(medians.values()),
+                             "glb_bytes": runs[0].outputs.get("glb", {}).get("bytes"),
                              "detailizer": runs[0].info["detailizer"]["name"],
                              "fine_grid": runs[0].info["fine_grid_shape"],
                              "triangles": runs[0].info["mesh"]["triangles"], "repeats": repeats})

@@ -32,11 +32,12 @@ from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset
 from core.recipe_loader import LoadedRecipe
 from core.structure import strict_loose_iou
 from geometry.voxelize import mesh_grid_shape, voxelize
-from pipeline.cache import closure_records
+from pipeline.cache import closure_records, portable_path
 from pipeline.engines import make_collision, make_lods
 from pipeline.executors import ASSET_THREADS
 from pipeline.export import apply_pivot, export_asset
-from pipeline.mesh import MeshSettings, mesh_fine_grid, mesh_stats
+from pipeline.chunks import detail_shape, detailize_and_mesh
+from pipeline.mesh import MeshSettings, mesh_stats
 from pipeline.provenance import asset_provenance, glb_extras
 from pipeline.regions import apply_regions
 from pipeline.report import AssetReport, AssetStatus
@@ -71,8 +72,10 @@ def named_input_files(asset: Asset, loaded: LoadedRecipe) -> dict[str, Path]:
 
 
 def detailizer_of(asset: Asset, loaded: LoadedRecipe, override: str | None) -> tuple[str, str | None]:
-    settings = asset.detailize
-    return override or settings.detailizer, settings.checkpoint and str(loaded.resolve(settings.checkpoint))
+    """(detailizer name, resolved path of the file it loads: its checkpoint or style set, or None = its default)."""
+    name = override or asset.detailize.detailizer
+    _, value = asset.detailize.data_file(name)
+    return name, value and str(loaded.resolve(value))
 
 
 def input_paths(loaded: LoadedRecipe, detailizer_override: str | None = None) -> set[Path]:
@@ -111,13 +114,14 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
             message = exc.message if exc.message.endswith(suffix) else exc.message + suffix
             raise RecipeError(message, file=loaded.path, field=f"{where}.source.{exc.field or ''}".rstrip("."),
                               hint=exc.hint) from None
-        _check_checkpoint_file(asset.detailize.checkpoint, loaded, f"{where}.detailize.checkpoint")
         name, checkpoint = detailizer_of(asset, loaded, detailizer_override)
+        field, value = asset.detailize.data_file(name)
+        _check_data_file(value, loaded, f"{where}.detailize.{field}")
         try:
             det = get_detailizer(name, checkpoint, asset.detailize.device)
         except DecollageError as exc:
             message = f"{exc.file}: {exc.message}" if exc.file else exc.message
-            about = "checkpoint" if checkpoint and exc.file == checkpoint else "detailizer"
+            about = field if (checkpoint and exc.file == checkpoint) or exc.field == field else "detailizer"
             raise RecipeError(message, file=loaded.path, field=f"{where}.detailize.{about}",
                               hint=exc.hint) from None
         for r, rule in enumerate(asset.regions):
@@ -132,10 +136,10 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
                     )
 
 
-def _check_checkpoint_file(value: str | None, loaded: LoadedRecipe, field: str) -> None:
-    """A ``checkpoint`` that names a file (it exists, or looks like a path) is checked for kind and size before
-    any detailizer reads it: a ``.npz`` (a style set for ``quilt``) as a style set, anything else as a
-    checkpoint. A bare name (``quilt``'s built-in set ``things``) is left to the detailizer to resolve."""
+def _check_data_file(value: str | None, loaded: LoadedRecipe, field: str) -> None:
+    """A ``checkpoint`` or ``style_set`` that names a file (it exists, or looks like a path) is checked for kind
+    and size before any detailizer reads it: a ``.npz`` as a style set, anything else as a checkpoint. A bare
+    name (``quilt``'s built-in set ``things``) is left to the detailizer to resolve."""
     if value is None:
         return
     path = loaded.resolve(value)
@@ -217,7 +221,8 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
             shape, supersample = mesh_grid_shape(source, asset.grid, asset.fit)
             check_asset_memory(shape, supersample=supersample, **grid_args)
         part_grid = voxelize(source, asset.grid, asset.fit)
-        check_asset_memory(part_grid.shape, **grid_args)  # the fine grid's cost, before detailizing
+        # the fine grid's cost, before detailizing: of the largest block a long grid is cut into (pipeline/chunks.py)
+        check_asset_memory(detail_shape(part_grid.shape), **grid_args)
     report.warnings += list(part_grid.warnings)
 
     with _timed(report, "regions", progress):
@@ -229,24 +234,26 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
     report.inputs["files"] = closure_records(
         [*((p, "source") for p in source.input_files),
          *((p, "detailizer") for p in getattr(detailizer, "input_files", ()))], loaded.base_dir)
-    with _timed(report, "detailize", progress):
-        with kernel_threads(ASSET_THREADS):
-            fine = detailizer.detailize(grid, seed=asset.detailize.seed)
-
     export = asset.export
-    provenance = asset_provenance(name, effective_checkpoint(name, checkpoint), fine)
-    with _timed(report, "mesh", progress):
-        mesh = mesh_fine_grid(fine, MeshSettings.from_export(export))
-        lods = make_lods(mesh, fine, export.lods)
+    progress.stage("detailize")
+    with kernel_threads(ASSET_THREADS):  # detailize and mesh block by block (pipeline/chunks.py)
+        detailed = detailize_and_mesh(grid, lambda g: detailizer.detailize(g, seed=asset.detailize.seed),
+                                      MeshSettings.from_export(export, grid.occupancy), report.timings_s)
+    for stage in ("detailize", "mesh"):
+        report.timings_s[stage] = round(report.timings_s.get(stage, 0.0), 3)
+    mesh = detailed.mesh
+    provenance = asset_provenance(name, effective_checkpoint(name, checkpoint), detailed.extras)
+    with _timed(report, "engine", progress):
+        lods = make_lods(mesh, export.lods)
         collision = make_collision(export.collision, mesh, grid)
 
     with _timed(report, "export", progress):
-        vox_jobs, vox_record = vox_files(export.vox, grid, fine, asset.name)
+        vox_jobs, vox_record = vox_files(export.vox, grid, detailed.fine, asset.name)
         written, pivot_offset = export_asset(mesh, out_dir, asset.name, export.formats, export.pivot,
                                              preview_size_px=export.preview_size_px if export.preview else None,
                                              glb_material=export.glb_material, profile=export.profile,
                                              lods=lods, collision=collision, asset_extras=glb_extras(provenance),
-                                             extra_files=vox_jobs)
+                                             extra_files=vox_jobs, compression=export.compression)
 
     report.outputs = {
         kind: {"path": path.name, "sha256": sha256_file(path), "bytes": path.stat().st_size}
@@ -255,7 +262,7 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
     report.info = {
         "source_kind": asset.source.kind,
         **({"variant": asset.variant} if asset.variant else {}),
-        "detailizer": detailizer.describe(),
+        "detailizer": portable_description(detailizer.describe(), loaded.base_dir),
         "provenance": provenance,
         **({"vox": vox_record} if vox_record else {}),
         "coarse_grid": {
@@ -265,8 +272,9 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
             "parts": list(grid.part_names),
             "styles": list(grid.style_names),
         },
-        "fine_grid_shape": list(fine.shape),
-        "structure": _structure(fine, grid),
+        "fine_grid_shape": list(detailed.fine_shape),
+        **({"chunks": detailed.chunks} if detailed.chunks > 1 else {}),
+        "structure": detailed.structure,
         "pivot_offset_m": [round(float(v), 9) for v in pivot_offset],
         "mesh": mesh_stats(apply_pivot(mesh, export.pivot)[0]),  # stats of the geometry as exported
         "engine": {"profile": export.profile.value, "lod_triangles": [len(m.faces) for m in (mesh, *lods)],
@@ -274,13 +282,19 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
     }
 
 
-def _structure(fine, grid) -> dict:
-    """How well the detailed shape keeps the coarse one: the paper's Strict- and Loose-IOU.
+#: Keys of a detailizer's ``describe()`` that hold a file path (the manifest writes them portably).
+DESCRIBED_PATH_KEYS = ("checkpoint", "style_set_path")
 
-    The fine occupancy binarised at 0.4 and max-pooled ×16 against the coarse
-    occupancy (``core/structure.py``): strict = |D∧C|/|D∨C|,
-    loose = |D∧C|/|C|; 1 is perfect.
+
+def portable_description(description: dict, base_dir: Path) -> dict:
+    """A detailizer's ``describe()`` with its file paths written like the input closure's (``portable_path``).
+
+    A checkpoint or style set inside the recipe's folder becomes relative to it, one shipped with this
+    project ``<decollage>/...``: two checkouts of the same commit write the same manifest. The file's
+    bytes are identified by its sha256 in ``inputs.files``.
     """
-    factor = fine.shape[0] // grid.shape[0]
-    strict, loose = strict_loose_iou(fine.occupancy, grid.occupancy, factor)
-    return {"strict_iou": round(strict, 4), "loose_iou": round(loose, 4)}
+    out = dict(description)
+    for key in DESCRIBED_PATH_KEYS:
+        if isinstance(out.get(key), str):
+            out[key] = portable_path(Path(out[key]), base_dir)
+    return out

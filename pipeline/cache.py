@@ -24,8 +24,9 @@ is the closure) is written atomically; a build killed at any point therefore
 rebuilds exactly the assets without a valid record.
 
 Paths in the closure are written portably (``portable_path``): relative to
-the recipe's folder, or ``<decollage>/...`` for files shipped with this
-project (the bundled font, the shipped weights), so that manifests hold no
+the recipe's folder, ``<decollage>/...`` for files shipped with this
+project (the bundled font, the shipped weights), or ``<styles>/...`` for
+built style sets in the per-user cache, so that manifests hold no
 machine-specific paths.
 """
 
@@ -41,6 +42,7 @@ from pathlib import Path
 from core import __version__
 from core.files import sha256_file, write_bytes_atomic
 from pipeline.report import AssetStatus
+from stylesets.format import style_dir
 
 RECORD_DIR = ".decollage"
 #: 2: entries carry the asset's provenance (exemplars, licences) and GLBs carry it in asset.extras.
@@ -48,11 +50,14 @@ RECORD_DIR = ".decollage"
 RECORD_FORMAT = 3
 
 #: Distributions whose versions change the bytes of the outputs.
-KEY_LIBRARIES = ("numpy", "scipy", "scikit-image", "trimesh", "fast-simplification", "fonttools", "manifold3d",
+KEY_LIBRARIES = ("numpy", "scipy", "scikit-image", "trimesh", "fast-simplification", "meshoptimizer", "fonttools", "manifold3d",
                  "shapely", "mapbox-earcut", "build123d", "torch", "Pillow")
 
 #: Prefix of closure paths inside this project's own folder (the folder holding ``core/``).
 PROJECT_PREFIX = "<decollage>/"
+#: Prefix of closure paths inside the built style sets' folder (``stylesets/format.py``'s ``style_dir``:
+#: a per-user cache, e.g. the quilt detailizer's default set ``<styles>/things.npz``).
+STYLES_PREFIX = "<styles>/"
 _PROJECT_ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -111,12 +116,16 @@ class Digests:
 
 def portable_path(path: Path, base_dir: Path) -> str:
     """How a closure file is written in a manifest: relative to the recipe folder ``base_dir`` when inside it,
-    ``<decollage>/...`` inside this project, else relative to ``base_dir`` (``..`` allowed) or absolute."""
+    ``<decollage>/...`` inside this project, ``<styles>/...`` inside the built style sets' folder, else
+    relative to ``base_dir`` (``..`` allowed) or absolute."""
     path, base = Path(os.path.abspath(path)), Path(os.path.abspath(base_dir))
     if path.is_relative_to(base):
         return path.relative_to(base).as_posix()
     if path.is_relative_to(_PROJECT_ROOT):
         return PROJECT_PREFIX + path.relative_to(_PROJECT_ROOT).as_posix()
+    styles = Path(os.path.abspath(style_dir()))
+    if path.is_relative_to(styles):
+        return STYLES_PREFIX + path.relative_to(styles).as_posix()
     try:
         return Path(os.path.relpath(path, base)).as_posix()
     except ValueError:  # another drive (Windows)
@@ -127,6 +136,8 @@ def resolve_portable(text: str, base_dir: Path) -> Path:
     """The file a ``portable_path`` string names (inverse of ``portable_path``)."""
     if text.startswith(PROJECT_PREFIX):
         return _PROJECT_ROOT / text[len(PROJECT_PREFIX):]
+    if text.startswith(STYLES_PREFIX):
+        return style_dir() / text[len(STYLES_PREFIX):]
     return Path(base_dir) / text  # an absolute text stays absolute
 
 

@@ -32,9 +32,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from core.errors import MeshingError
-from core.grid import FineGrid, LabeledGrid
+from core.grid import LabeledGrid
 from core.recipe import CollisionKind, EngineProfile
-from pipeline.mesh import decimate, vertex_style_colors
+from pipeline.mesh import decimate_kept
 
 if TYPE_CHECKING:
     import trimesh
@@ -64,22 +64,23 @@ def lod_targets(lods: list[float] | list[int], lod0_triangles: int) -> list[int]
     return targets
 
 
-def make_lods(lod0: "trimesh.Trimesh", fine: "FineGrid", lods: list | None) -> list["trimesh.Trimesh"]:
-    """LOD1..n as decimations of ``lod0`` (metres), coloured like it. Empty without ``lods``."""
+def make_lods(lod0: "trimesh.Trimesh", lods: list | None) -> list["trimesh.Trimesh"]:
+    """LOD1..n as decimations of ``lod0`` (metres), coloured like it (a LOD keeps a subset of LOD0's
+    vertices and their colours). Empty without ``lods``."""
     import trimesh
-
 
     if not lods or len(lods) < 2:
         return []
+    colours = np.asarray(lod0.visual.vertex_colors) if getattr(lod0.visual, "kind", None) == "vertex" else None
     out = []
     for target in lod_targets(lods, len(lod0.faces)):
         if target >= len(lod0.faces):
             mesh = lod0.copy()
         else:
-            verts, faces = decimate(np.asarray(lod0.vertices), np.asarray(lod0.faces), target)
-            mesh = trimesh.Trimesh(verts, faces, process=True)
-            if len(lod0.visual.vertex_colors):
-                mesh.visual.vertex_colors = vertex_style_colors(fine, mesh)
+            kept, faces = decimate_kept(np.asarray(lod0.vertices), np.asarray(lod0.faces), target)
+            mesh = trimesh.Trimesh(np.asarray(lod0.vertices)[kept], faces,
+                                   vertex_colors=colours[kept] if colours is not None else None,
+                                   process=False, validate=False)
         out.append(mesh)
     return out
 

@@ -21,9 +21,10 @@ import numpy as np
 
 from core.errors import DecollageError, ExportError
 from core.files import AtomicWriter, ensure_writable_dir
-from core.recipe import EngineProfile, ExportFormat, Pivot
+from core.recipe import EngineProfile, ExportFormat, GlbCompression, Pivot
 from geometry.preview import preview_png
 from pipeline.engines import layout, other_format_transform
+from pipeline.glb_meshopt import encode_glb_meshopt
 from pipeline.mesh import mesh_stats  # noqa: F401 - part of this module's API (manifest facts)
 
 if TYPE_CHECKING:
@@ -103,11 +104,12 @@ def _encode_glb(mesh: "trimesh.Trimesh", stem: str, matte_material: bool = False
 
 
 def _encode_glb_nodes(nodes: list[tuple[str, "trimesh.Trimesh"]], matte_material: bool = False,
-                      asset_extras: dict | None = None) -> bytes:
+                      asset_extras: dict | None = None, compression: GlbCompression = GlbCompression.NONE) -> bytes:
     """GLB with one named node (and mesh) per entry, normals and COLOR_0 where coloured.
 
     ``matte_material`` adds a white non-metallic material. ``asset_extras`` (plain JSON)
     becomes the glTF ``asset.extras`` (the asset's provenance, ``pipeline/provenance.py``).
+    ``compression`` meshopt writes quantized, compressed geometry (``pipeline/glb_meshopt.py``).
 
     Without a material, glTF's default one is fully metallic, which some
     renderers (three.js, for one) show almost black; with one, trimesh reads the
@@ -116,6 +118,8 @@ def _encode_glb_nodes(nodes: list[tuple[str, "trimesh.Trimesh"]], matte_material
     """
     import trimesh
 
+    if GlbCompression(compression) == GlbCompression.MESHOPT:
+        return encode_glb_meshopt(nodes, _GLB_MATERIAL if matte_material else None, asset_extras, GENERATOR)
     scene = trimesh.Scene()
     for name, mesh in nodes:
         scene.add_geometry(mesh, geom_name=name, node_name=name)
@@ -186,6 +190,7 @@ def export_asset(
     collision: Sequence["trimesh.Trimesh"] = (),
     asset_extras: dict | None = None,
     extra_files: Sequence[tuple[str, str, Callable[[], bytes]]] = (),
+    compression: GlbCompression = GlbCompression.NONE,
 ) -> tuple[dict[str, Path], np.ndarray]:
     """Write all files of one asset, all or nothing: ``<stem>.<format>``, ``<stem>.png`` and engine extras.
 
@@ -202,6 +207,7 @@ def export_asset(
         lods: LOD1..n meshes (same frame as ``mesh``).
         collision: collision pieces (same frame as ``mesh``).
         asset_extras: JSON written into every GLB's ``asset.extras`` (provenance and licences).
+        compression: how GLB files store geometry (``GlbCompression``; OBJ/STL/PLY are never compressed).
         extra_files: more files of the asset, ``(kind, file name, () → bytes)``, written
             with the others, all or nothing (the ``.vox`` exports, ``pipeline/vox_export.py``).
 
@@ -229,10 +235,11 @@ def export_asset(
     for fmt in (ExportFormat(f) for f in formats):
         if fmt == ExportFormat.GLB:
             jobs.append(("glb", f"{stem}.glb",
-                         lambda nodes=plan.main_nodes: _encode_glb_nodes(nodes, glb_material, asset_extras)))
+                         lambda nodes=plan.main_nodes: _encode_glb_nodes(nodes, glb_material, asset_extras,
+                                                                         compression)))
             for file_stem, nodes in plan.extra_files:
                 jobs.append((f"glb{file_stem[len(stem):]}", f"{file_stem}.glb",
-                             lambda nodes=nodes: _encode_glb_nodes(nodes, glb_material, asset_extras)))
+                             lambda nodes=nodes: _encode_glb_nodes(nodes, glb_material, asset_extras, compression)))
         else:
             jobs.append((fmt.value, f"{stem}.{fmt.value}", lambda fmt=fmt: ENCODERS[fmt](other, stem)))
     if preview_size_px is not None:

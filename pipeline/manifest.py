@@ -24,6 +24,7 @@ from pathlib import Path
 from core import __version__
 from core.files import sha256_file, write_bytes_atomic
 from core.grid import ISO_LEVEL
+from pipeline.cache import portable_path
 from pipeline.report import AssetStatus
 
 MANIFEST_NAME = "manifest.json"
@@ -35,13 +36,18 @@ MANIFEST_FORMAT = 2
 AXES = {"up": "+Y", "front": "+Z", "right": "+X", "units": "m", "convention": "glTF 2.0"}
 
 
-def manifest_dict(loaded, reports) -> dict:
-    """The manifest of a build: ``reports`` in recipe order (cached ones carry their recorded entry)."""
+def manifest_dict(loaded, reports, out_dir: Path) -> dict:
+    """The manifest of a build into ``out_dir``: ``reports`` in recipe order (cached ones carry their recorded entry).
+
+    The recipe's path is relative to ``out_dir`` when the recipe lies inside it, ``<decollage>/...``
+    inside this project, else relative to ``out_dir`` (``pipeline/cache.py``'s ``portable_path``).
+    """
 
     return {
         "format": MANIFEST_FORMAT,
         "tool": {"name": "decollage", "version": __version__, "python": platform.python_version()},
-        "recipe": {"path": str(loaded.path), "sha256": sha256_file(loaded.path)},
+        # where the recipe lies, written so that it does not depend on where the checkout or the cwd is
+        "recipe": {"path": portable_path(loaded.path, out_dir), "sha256": sha256_file(loaded.path)},
         "axes": AXES,
         "iso_level": ISO_LEVEL,
         "summary": {
@@ -57,7 +63,7 @@ def write_manifest(out_dir: Path, loaded, reports) -> Path:
     """Write ``out_dir/manifest.json`` atomically; returns its path."""
 
     path = out_dir / MANIFEST_NAME
-    text = json.dumps(manifest_dict(loaded, reports), indent=2, sort_keys=False) + "\n"
+    text = json.dumps(manifest_dict(loaded, reports, out_dir), indent=2, sort_keys=False) + "\n"
     write_bytes_atomic(path, text.encode("utf-8"))
     return path
 

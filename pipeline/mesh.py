@@ -1,18 +1,21 @@
 """Meshing: the detailizer's fine occupancy field → one closed, coloured triangle mesh.
 
-Steps (all deterministic):
+Steps (all deterministic), per block of the field (``mesh_piece``; a whole asset is one block unless
+``pipeline/chunks.py`` cut it along x):
 
 1. crop the field to the bounding box of voxels ≥ iso plus a one-voxel margin;
 2. pad the crop with one voxel of zeros, so that shapes touching the grid
    border still give a closed surface (marching cubes leaves it open otherwise);
+   a block's side that another block continues is neither cropped nor padded;
 3. marching cubes (scikit-image, Lewiner) at the iso level; faces are flipped so
    that normals point outward (positive volume);
-4. optional Taubin smoothing, then quadric decimation (fast-simplification) down
-   to ``max_triangles``, both in voxel units so that they do not depend on scale;
-5. map to metres: a sample index ``idx`` of the padded crop is the centre of grid
-   voxel ``idx - 1 + crop_start``, i.e. ``origin + (idx - 1 + crop_start + 0.5) * voxel``;
-6. vertex colours: the palette colour of the style of the voxel just inside the
-   surface at each vertex.
+4. optional Taubin smoothing, then quadric decimation (meshoptimizer) down
+   to the block's share of ``max_triangles``, both in voxel units so that they do not
+   depend on scale; vertices on a side shared with another block stay where they are;
+5. vertex colours: the palette colour of the style of the voxel just inside the
+   surface at each vertex;
+6. join the blocks (``to_trimesh``: their shared boundary vertices are equal bit for bit and are
+   welded) and map to metres: vertex ``v`` (grid-voxel units) lies at ``origin + (v + 0.5) * voxel``.
 
 The result is a ``trimesh.Trimesh`` in metres, canonical frame (+Y up, front +Z).
 """
@@ -26,7 +29,7 @@ import numpy as np
 
 from core.errors import MeshingError
 from core.grid import ISO_LEVEL, FineGrid
-from core.recipe import ExportSettings
+from core.recipe import AssetUse, ExportSettings
 from pipeline.palette import palette_rgba
 
 if TYPE_CHECKING:
@@ -38,10 +41,43 @@ if TYPE_CHECKING:
 _TAUBIN_LAMBDA = 0.5
 _TAUBIN_MU = 0.53
 
+#: Largest error meshoptimizer's simplifier may make, relative to the mesh's extent: high enough that the
+#: triangle count, not the error, decides where it stops (as with a ``max_triangles`` budget).
+DECIMATE_MAX_ERROR = 1.0
+
 # How far inside the surface (in voxels) a vertex looks up its style: half a
 # voxel lands in the occupied voxel next to the surface, whose style is the
 # detailizer's own choice rather than the fill of an empty neighbour.
 _STYLE_PROBE_VOXELS = 0.5
+
+
+#: The ``auto`` triangle budget (``triangle_budget``): triangles per exposed coarse voxel face, the most and
+#: the fewest triangles, per ``export.use``. A coarse face is 16 × 16 fine voxels, about 500 triangles out of
+#: marching cubes; docs/benchmarks.md gives the surface deviation each budget costs.
+TRIANGLES_PER_COARSE_FACE = {AssetUse.HERO: 64, AssetUse.PROP: 32, AssetUse.BACKGROUND: 8}
+MAX_AUTO_TRIANGLES = {AssetUse.HERO: 200_000, AssetUse.PROP: 60_000, AssetUse.BACKGROUND: 12_000}
+MIN_AUTO_TRIANGLES = 2_000
+
+
+def coarse_surface_faces(occupancy: np.ndarray) -> np.ndarray:
+    """(X, Y, Z) int64: per occupied coarse cell, how many of its six faces touch an empty cell (or the border)."""
+    padded = np.pad(occupancy, 1)
+    faces = np.zeros(occupancy.shape, dtype=np.int64)
+    for axis in range(3):
+        for step in (-1, 1):
+            faces += ~np.roll(padded, step, axis=axis)[1:-1, 1:-1, 1:-1] & occupancy
+    return faces
+
+
+def triangle_budget(max_triangles: int | str | None, use: AssetUse, occupancy: np.ndarray) -> int | None:
+    """The asset's triangle budget: ``export.max_triangles`` when it is a number (or None: no decimation);
+    for ``"auto"``, ``TRIANGLES_PER_COARSE_FACE[use]`` × the coarse grid's exposed faces, clamped to
+    ``[MIN_AUTO_TRIANGLES, MAX_AUTO_TRIANGLES[use]]``."""
+    if max_triangles != "auto":
+        return max_triangles
+    use = AssetUse(use)
+    wanted = TRIANGLES_PER_COARSE_FACE[use] * int(coarse_surface_faces(np.asarray(occupancy, dtype=bool)).sum())
+    return int(min(max(wanted, MIN_AUTO_TRIANGLES), MAX_AUTO_TRIANGLES[use]))
 
 
 @dataclass(frozen=True)
@@ -53,25 +89,36 @@ class MeshSettings:
             inflate step); 0 = off.
         max_triangles: decimate to at most this many triangles; None = never.
         vertex_colors: colour vertices by style (palette.py); off = no colours.
+        taubin_max_shift: no vertex moves farther than this (fine voxels, per axis) from where marching
+            cubes put it while smoothing (``taubin_smooth``); None = unbounded.
     """
 
     taubin_iterations: int = 0
     max_triangles: int | None = 150_000
     vertex_colors: bool = True
+    taubin_max_shift: float | None = None
 
     def __post_init__(self) -> None:
         if self.taubin_iterations < 0:
             raise ValueError("taubin_iterations must be >= 0")
         if self.max_triangles is not None and self.max_triangles < 4:
             raise ValueError("max_triangles must be >= 4 (a tetrahedron) or None")
+        if self.taubin_max_shift is not None and not self.taubin_max_shift > 0:
+            raise ValueError("taubin_max_shift must be > 0 or None")
 
     @classmethod
-    def from_export(cls, export: "ExportSettings") -> "MeshSettings":
-        """The meshing part of a recipe's ``export`` settings."""
+    def from_export(cls, export: "ExportSettings", occupancy: np.ndarray | None = None) -> "MeshSettings":
+        """The meshing part of a recipe's ``export`` settings; ``occupancy`` (the coarse grid's) sets an
+        ``auto`` budget (``triangle_budget``; without it, ``auto`` means the hero cap)."""
+        budget = export.max_triangles
+        if budget == "auto":
+            budget = (triangle_budget(budget, export.use, occupancy) if occupancy is not None
+                      else MAX_AUTO_TRIANGLES[AssetUse.HERO])
         return cls(
             taubin_iterations=export.taubin_iterations,
-            max_triangles=export.max_triangles,
+            max_triangles=budget,
             vertex_colors=export.vertex_colors,
+            taubin_max_shift=export.taubin_max_shift_voxels,
         )
 
 
@@ -90,44 +137,118 @@ def mesh_fine_grid(fine: FineGrid, settings: MeshSettings | None = None, iso: fl
     Raises:
         MeshingError: the field is empty, not finite, or a meshing step failed.
     """
+    settings = settings or MeshSettings()
+    piece = mesh_piece(fine.occupancy, fine.style if settings.vertex_colors else None, fine.style_names, settings,
+                       settings.max_triangles, iso=iso)
+    return to_trimesh([piece] if piece is not None else [], fine.origin_m, fine.voxel_size_m, settings.vertex_colors)
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One chunk's surface, ready to join: grid-voxel units (vertex ``v`` lies at ``origin + (v + 0.5) · voxel``).
+
+    Attributes:
+        vertices: (V, 3) float64, x already shifted by the chunk's first fine column.
+        faces: (F, 3) int64, outward.
+        colors: (V, 4) uint8 RGBA, or None without vertex colours.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    colors: np.ndarray | None
+
+
+def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tuple[str, ...],
+               settings: MeshSettings, max_triangles: int | None, x_offset: int = 0,
+               open_x: tuple[bool, bool] = (False, False), iso: float = ISO_LEVEL) -> Piece | None:
+    """The surface of one block of a fine field: marching cubes, smoothing, decimation, colours.
+
+    Args:
+        occupancy: (X, Y, Z) float32 fine field of the block.
+        style: (X, Y, Z) int16 style per fine voxel (as ``FineGrid.style``), or None without colours.
+        max_triangles: this block's share of the triangle budget; None = no decimation.
+        x_offset: the block's first fine column in the whole grid (added to vertex x).
+        open_x: (low, high) sides along x that continue into a neighbouring block: they are neither
+            cropped nor closed, and the vertices on them are kept in place by smoothing and decimation,
+            so that the neighbour's piece (meshed from the same boundary samples) joins exactly.
+    Returns:
+        the ``Piece``, or None when the block holds no voxel at or above ``iso``.
+    """
+    cropped = crop_padded(occupancy, iso, open_x)
+    if cropped is None:
+        return None
+    volume, start = cropped
+    verts, faces = marching_cubes(volume, iso)
+    del volume
+    verts += start  # back to the block's sample indices
+    fixed = _open_side_vertices(verts, occupancy.shape[0], open_x)
+    if settings.taubin_iterations > 0:
+        verts = taubin_smooth(verts, faces, settings.taubin_iterations, fixed, settings.taubin_max_shift)
+    if max_triangles is not None and len(faces) > max_triangles:
+        verts, faces = decimate(verts, faces, max_triangles, lock_border=fixed is not None)
+    verts[:, 0] += x_offset
+    colors = None
+    if style is not None:
+        local = verts - np.array([x_offset, 0.0, 0.0])
+        colors = style_colors_at(local, vertex_normals(verts, faces), style, style_names)
+    return Piece(verts, faces, colors)
+
+
+def _open_side_vertices(verts: np.ndarray, n_x: int, open_x: tuple[bool, bool]) -> np.ndarray | None:
+    """(V,) bool: vertices on an open side's boundary plane (x = 0 or x = n_x - 1), or None when none is open."""
+    if not any(open_x):
+        return None
+    fixed = np.zeros(len(verts), dtype=bool)
+    if open_x[0]:
+        fixed |= verts[:, 0] <= 0.0
+    if open_x[1]:
+        fixed |= verts[:, 0] >= n_x - 1
+    return fixed
+
+
+def to_trimesh(pieces: list[Piece], origin_m, voxel_size_m: float, colors: bool) -> "trimesh.Trimesh":
+    """Join pieces (welding the vertices they share on block boundaries) into one mesh in metres.
+
+    Raises:
+        MeshingError: nothing to join, or the joined mesh has no triangles.
+    """
     import trimesh
 
-    settings = settings or MeshSettings()
-    crop, start = crop_padded(fine.occupancy, iso)
-    verts, faces = marching_cubes(crop, iso)
-    # Back to grid-voxel units (still unscaled): undo the pad, add the crop start.
-    verts += start - 1
-
-    if settings.taubin_iterations > 0:
-        smooth = trimesh.Trimesh(verts, faces, process=True)
-        trimesh.smoothing.filter_taubin(
-            smooth, lamb=_TAUBIN_LAMBDA, nu=_TAUBIN_MU, iterations=2 * settings.taubin_iterations
+    if not pieces:
+        raise MeshingError(
+            "the detailed grid is empty; nothing to mesh",
+            hint="no voxel reaches the iso level; check the source shape, the grid fit, and the detailizer",
         )
-        verts, faces = np.asarray(smooth.vertices), np.asarray(smooth.faces)
-
-    if settings.max_triangles is not None and len(faces) > settings.max_triangles:
-        verts, faces = decimate(verts, faces, settings.max_triangles)
-
-    origin = np.asarray(fine.origin_m, dtype=np.float64)
-    verts_m = origin + (verts + 0.5) * float(fine.voxel_size_m)
-    mesh = trimesh.Trimesh(verts_m, faces, process=True)
+    verts = np.concatenate([p.vertices for p in pieces])
+    faces = np.concatenate([p.faces + off for p, off in
+                            zip(pieces, np.cumsum([0] + [len(p.vertices) for p in pieces[:-1]]))])
+    rgba = np.concatenate([p.colors for p in pieces]) if colors else None
+    if len(pieces) > 1:  # the pieces share their boundary vertices bit for bit: weld them
+        verts, first, inverse = np.unique(verts, axis=0, return_index=True, return_inverse=True)
+        faces = inverse.reshape(-1)[faces]
+        rgba = rgba[first] if rgba is not None else None
+        faces = drop_coincident_faces(faces)
+    origin = np.asarray(origin_m, dtype=np.float64)
+    verts_m = origin + (verts + 0.5) * float(voxel_size_m)
+    mesh = trimesh.Trimesh(verts_m, faces, vertex_colors=rgba, process=False, validate=False)
     if len(mesh.faces) == 0:
         raise MeshingError("meshing produced no triangles", hint="the detailed shape is too small or too thin")
     # Guard against a change of scikit-image's winding convention: the volume of
     # a closed, outward-facing mesh is positive.
     if signed_volume(mesh.vertices, mesh.faces) < 0:
         mesh.invert()
-
-    if settings.vertex_colors:
-        mesh.visual.vertex_colors = vertex_style_colors(fine, mesh)
     return mesh
 
 
-def crop_padded(occupancy: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarray]:
-    """Crop to the inside voxels' bbox (+1 margin) and pad with one voxel of zeros.
+def crop_padded(occupancy: np.ndarray, iso: float,
+                open_x: tuple[bool, bool] = (False, False)) -> tuple[np.ndarray, np.ndarray] | None:
+    """Crop to the inside voxels' bbox (+1 margin) and pad with one voxel of zeros, except on open x sides.
 
-    Returns the padded float32 crop and the (3,) grid index of the crop's first
-    voxel (float64 holding whole numbers, ready to add to vertex indices).
+    Returns the padded float32 crop and the (3,) block index of its first sample (float64 holding whole
+    numbers, ready to add to vertex indices), or None when no voxel reaches ``iso``.
+
+    Raises:
+        MeshingError: the field holds NaN or infinite values.
     """
     # Max-projections are one cheap pass each and, unlike a comparison, carry a
     # NaN/inf anywhere in the field through to the check below.
@@ -137,18 +258,23 @@ def crop_padded(occupancy: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarr
             "the detailed grid contains NaN or infinite values",
             hint="the detailizer produced invalid output; check its checkpoint and input",
         )
-    lo, hi = [], []
-    for proj in projections:
+    lo, hi, pad = [], [], []
+    for axis, proj in enumerate(projections):
         inside = np.flatnonzero(proj >= iso)
         if inside.size == 0:
-            raise MeshingError(
-                "the detailed grid is empty; nothing to mesh",
-                hint="no voxel reaches the iso level; check the source shape, the grid fit, and the detailizer",
-            )
-        lo.append(max(int(inside[0]) - 1, 0))
-        hi.append(min(int(inside[-1]) + 2, proj.shape[0]))
+            return None
+        a, b = max(int(inside[0]) - 1, 0), min(int(inside[-1]) + 2, proj.shape[0])
+        if axis > 0 and any(open_x):
+            # Blocks that join must cut their shared plane at the same y, z offsets: scikit-image's
+            # float32 vertices round differently at different offsets, and then would not weld.
+            a, b = 0, proj.shape[0]
+        open_lo, open_hi = open_x if axis == 0 else (False, False)
+        lo.append(0 if open_lo else a)
+        hi.append(proj.shape[0] if open_hi else b)
+        pad.append((0 if open_lo else 1, 0 if open_hi else 1))
     crop = occupancy[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
-    return np.pad(crop, 1, mode="constant", constant_values=0.0), np.asarray(lo, dtype=np.float64)
+    start = np.asarray(lo, dtype=np.float64) - np.asarray([p[0] for p in pad], dtype=np.float64)
+    return np.pad(crop, pad, mode="constant", constant_values=0.0), start
 
 
 def marching_cubes(volume: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarray]:
@@ -166,20 +292,74 @@ def marching_cubes(volume: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarr
     return verts.astype(np.float64), np.ascontiguousarray(faces[:, ::-1], dtype=np.int64)
 
 
-def decimate(verts: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
-    """Quadric decimation to at most ``target`` faces (voxel units in, voxel units out)."""
-    import fast_simplification
+def taubin_smooth(verts: np.ndarray, faces: np.ndarray, iterations: int, fixed: np.ndarray | None = None,
+                  max_shift: float | None = None) -> np.ndarray:
+    """Taubin λ|μ smoothing (uniform Laplacian over edge neighbours); (V, 3) new vertices, same units.
 
+    ``iterations`` passes of one shrink (λ) and one inflate (μ) step; vertices where ``fixed`` (V,) is
+    True do not move (block boundaries). With ``max_shift`` (voxels), no vertex ends up farther than that
+    from where marching cubes put it along any axis: the staircase of a near-binary field (whose true
+    surface is anywhere within half a voxel of it) is ironed out, while features larger than a voxel
+    (an exemplar's window frames, a tile's edge) keep their place and depth.
+    """
+    from scipy import sparse
+
+    n = len(verts)
+    a, b = faces.T.astype(np.int32), np.roll(faces, -1, axis=1).T.astype(np.int32)
+    rows, cols = np.concatenate([a.ravel(), b.ravel()]), np.concatenate([b.ravel(), a.ravel()])
+    adjacency = sparse.csr_matrix((np.ones(len(rows), dtype=np.float32), (rows, cols)), shape=(n, n))
+    adjacency.sum_duplicates()
+    adjacency.data[:] = 1.0  # each neighbour once, however many faces share the edge
+    degree = np.diff(adjacency.indptr).astype(np.float32)
+    inv_degree = (np.where(degree > 0, 1.0 / np.maximum(degree, 1), 0.0)[:, None]).astype(np.float32)
+    start = np.asarray(verts, dtype=np.float64)
+    out = start.astype(np.float32)
+    movable = np.ones((n, 1), np.float32) if fixed is None else (~fixed)[:, None].astype(np.float32)
+    for _ in range(iterations):
+        for weight in (_TAUBIN_LAMBDA, -_TAUBIN_MU):
+            out += np.float32(weight) * movable * (adjacency @ out * inv_degree - out)
+        if max_shift is not None:
+            np.clip(out, start - max_shift, start + max_shift, out=out)
+    result = out.astype(np.float64)
+    if fixed is not None:
+        result[fixed] = start[fixed]  # bit for bit: the neighbouring block welds to these
+    return result
+
+
+def decimate(verts: np.ndarray, faces: np.ndarray, target: int,
+             lock_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric decimation (meshoptimizer) to at most ``target`` faces (voxel units in, voxel units out).
+
+    See ``decimate_kept``; returns the kept (V', 3) vertices and the (F', 3) faces into them.
+    """
+    kept, out_f = decimate_kept(verts, faces, target, lock_border)
+    return np.asarray(verts, dtype=np.float64)[kept], out_f
+
+
+def decimate_kept(verts: np.ndarray, faces: np.ndarray, target: int,
+                  lock_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric decimation to at most ``target`` faces: (V',) indices of the input vertices kept, in input
+    order, and (F', 3) int64 faces into that subset (so vertex attributes follow by indexing).
+
+    The simplifier keeps the mesh's topology; ``lock_border`` keeps every vertex on an open
+    boundary where it is (a block's side that another block continues).
+
+    Raises:
+        MeshingError: the simplifier failed, could not reach ``target``, or left nothing.
+    """
+    import meshoptimizer
+
+    indices = np.ascontiguousarray(faces, dtype=np.uint32).reshape(-1)
+    out = np.empty_like(indices)
+    options = meshoptimizer.SIMPLIFY_LOCK_BORDER if lock_border else 0
     try:
-        out_v, out_f = fast_simplification.simplify(verts, faces.astype(np.int32), target_count=target)
-        if len(out_f) > target:
-            # The simplifier stops early when no collapse stays under its error
-            # bound; one more round from the smaller mesh nearly always finishes.
-            out_v, out_f = fast_simplification.simplify(out_v, out_f.astype(np.int32), target_count=target)
+        count = meshoptimizer.simplify(out, indices, np.ascontiguousarray(verts, dtype=np.float32),
+                                       target_index_count=3 * target, target_error=DECIMATE_MAX_ERROR,
+                                       options=options)
     except (ValueError, RuntimeError) as exc:
         raise MeshingError(f"decimation failed: {exc}", field="export.max_triangles",
                            hint="set export.max_triangles: null to skip it") from None
-    out_f = drop_coincident_faces(np.asarray(out_f, dtype=np.int64))
+    out_f = drop_coincident_faces(out[:count].reshape(-1, 3).astype(np.int64))
     if len(out_f) > target:
         raise MeshingError(
             f"could not decimate below {len(out_f)} triangles (max_triangles is {target})",
@@ -188,7 +368,8 @@ def decimate(verts: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndar
     if len(out_f) == 0:
         raise MeshingError(f"decimation to {target} triangles left nothing", field="export.max_triangles",
                            hint="raise export.max_triangles")
-    return np.asarray(out_v, dtype=np.float64), out_f
+    kept, inverse = np.unique(out_f, return_inverse=True)
+    return kept, inverse.reshape(-1, 3).astype(np.int64)
 
 
 def drop_coincident_faces(faces: np.ndarray) -> np.ndarray:
@@ -225,20 +406,37 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
 
 
 def vertex_style_colors(fine: FineGrid, mesh: "trimesh.Trimesh") -> np.ndarray:
-    """(V, 4) uint8 RGBA: palette colour of the style just inside the surface at each vertex.
-
-    Each vertex looks half a voxel inward along its normal and takes the style of
-    the voxel there (indices clamped to the grid); invalid styles get the neutral grey.
-    """
+    """(V, 4) uint8 RGBA: palette colour of the style just inside the surface at each vertex of ``mesh`` (metres)."""
     voxel = float(fine.voxel_size_m)
-    probe = np.asarray(mesh.vertices) - _STYLE_PROBE_VOXELS * voxel * np.asarray(mesh.vertex_normals)
-    idx = np.floor((probe - np.asarray(fine.origin_m, dtype=np.float64)) / voxel).astype(np.int64)
-    np.clip(idx, 0, np.asarray(fine.shape) - 1, out=idx)
-    styles = fine.style[idx[:, 0], idx[:, 1], idx[:, 2]].astype(np.int64)
-    lut = palette_rgba(fine.style_names)
-    neutral = len(fine.style_names)
+    local = (np.asarray(mesh.vertices) - np.asarray(fine.origin_m, dtype=np.float64)) / voxel - 0.5
+    return style_colors_at(local, np.asarray(mesh.vertex_normals), fine.style, fine.style_names)
+
+
+def style_colors_at(verts: np.ndarray, normals: np.ndarray, style: np.ndarray,
+                    style_names: tuple[str, ...]) -> np.ndarray:
+    """(V, 4) uint8 RGBA of the style half a voxel inside the surface at each vertex.
+
+    ``verts`` (V, 3) in voxel units of ``style`` (vertex ``v`` is at voxel centre ``v``), ``normals``
+    (V, 3) unit outward normals. Indices are clamped to the grid; invalid styles get the neutral grey.
+    """
+    probe = verts - _STYLE_PROBE_VOXELS * normals
+    idx = np.floor(probe + 0.5).astype(np.int64)
+    np.clip(idx, 0, np.asarray(style.shape) - 1, out=idx)
+    styles = style[idx[:, 0], idx[:, 1], idx[:, 2]].astype(np.int64)
+    lut = palette_rgba(style_names)
+    neutral = len(style_names)
     valid = (styles >= 0) & (styles < neutral)
     return lut[np.where(valid, styles, neutral)]
+
+
+def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(V, 3) unit vertex normals: the sum of the adjacent faces' area-weighted normals (outward faces)."""
+    a, b, c = verts[faces[:, 0]], verts[faces[:, 1]], verts[faces[:, 2]]
+    face_n = np.cross(b - a, c - a)
+    corners = faces.reshape(-1)
+    normals = np.stack([np.bincount(corners, weights=np.repeat(face_n[:, axis], 3), minlength=len(verts))
+                        for axis in range(3)], axis=1)
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
 
 
 def mesh_stats(mesh: "trimesh.Trimesh") -> dict:

@@ -22,7 +22,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from core.files import sha256_file, write_bytes_atomic
-from core.grid import FineGrid
+
 from core.provenance import EXEMPLARS, STYLE_SET, STYLE_SET_DIGEST, ExemplarCredit, LicenceNeed
 from pipeline.report import AssetStatus
 
@@ -41,18 +41,18 @@ def file_digest(path: str | Path) -> str:
     return _digest(str(path), stat.st_size, stat.st_mtime_ns)
 
 
-def asset_provenance(detailizer_name: str, checkpoint: str | None, fine: FineGrid) -> dict:
+def asset_provenance(detailizer_name: str, checkpoint: str | None, extras: dict) -> dict:
     """The provenance record of one asset (see the module docstring).
 
     Args:
         detailizer_name: the registry name the asset was detailized with.
         checkpoint: the weights (or data) file the detailizer loaded, or None.
-        fine: the detailized grid, whose ``extras`` carry the exemplars.
+        extras: the detailized grid's ``FineGrid.extras`` (merged over blocks, ``pipeline/chunks.py``),
+            which carry the exemplars.
     """
     ckpt = None
     if checkpoint and Path(checkpoint).is_file():
         ckpt = {"file": Path(checkpoint).name, "sha256": file_digest(checkpoint)}
-    extras = fine.extras
     credits = None
     if EXEMPLARS in extras:
         credits = [ExemplarCredit.from_json(c).to_json() for c in extras[EXEMPLARS]]

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from core.errors import ExportError
+from pipeline.chunks import WHOLE_MAX_CELLS
 from core.grid import ISO_LEVEL, FineGrid, LabeledGrid
 from core.recipe import UpAxis, VoxExport
 from pipeline.palette import palette_rgba
@@ -109,13 +110,21 @@ def fine_vox(fine: FineGrid) -> tuple[bytes, dict]:
     return data, record
 
 
-def vox_files(kinds, grid: LabeledGrid, fine: FineGrid, stem: str) -> tuple[list[tuple], dict]:
+def vox_files(kinds, grid: LabeledGrid, fine: FineGrid | None, stem: str) -> tuple[list[tuple], dict]:
     """The export jobs ``(kind, file name, () → bytes)`` and the manifest's ``vox`` record for ``export.vox``.
 
-    The bytes are made here (the records need them); the jobs hand them over.
+    The bytes are made here (the records need them); the jobs hand them over. ``fine`` is None for an
+    asset detailized block by block (``pipeline/chunks.py``): its whole fine grid never existed.
+
+    Raises:
+        ExportError: a ``fine`` export asked for such an asset.
     """
     jobs, record = [], {}
     for kind in (VoxExport(k) for k in kinds):
+        if kind == VoxExport.FINE and fine is None:
+            raise ExportError(f"a fine .vox is not written for an asset longer than {WHOLE_MAX_CELLS} coarse "
+                              "cells along x (it is detailized block by block)", field="export.vox",
+                              hint="use vox: [coarse], or shorten the asset")
         data, info = coarse_vox(grid) if kind == VoxExport.COARSE else fine_vox(fine)
         jobs.append((f"vox_{kind.value}", f"{stem}.{kind.value}.vox", lambda data=data: data))
         record[kind.value] = info

@@ -51,7 +51,7 @@ else
          "npm ci --prefix studio/web" >&2
 fi
 # pip's resolver cannot see every conflict (ecosystem.md §1.1): prove the stack imports.
-quiet .venv/bin/python -c "import build123d, trimesh, torch, skimage, fast_simplification, fontTools, uharfbuzz, shapely, cli.app; print('decollage environment ready: torch', torch.__version__, '| build123d', build123d.__version__)"
+quiet .venv/bin/python -c "import build123d, trimesh, torch, skimage, fast_simplification, meshoptimizer, fontTools, uharfbuzz, shapely, cli.app; print('decollage environment ready: torch', torch.__version__, '| build123d', build123d.__version__)"
 if [ "${1:-}" = "test" ]; then
     if [ ! -x .venv-cadquery/bin/python ]; then
         bash scripts/install_cadquery.sh

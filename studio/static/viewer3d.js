@@ -4,6 +4,8 @@
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+// Assets exported with export.compression: meshopt (EXT_meshopt_compression) need meshopt's decoder.
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 
 export { THREE };
 
@@ -59,7 +61,7 @@ export class Viewer {
     this.content = new THREE.Group();
     this.scene.add(this.content);
     this.frames = 0;
-    this.loader = new GLTFLoader();
+    this.loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
   }

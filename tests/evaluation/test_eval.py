@@ -285,11 +285,13 @@ def test_bench_measures_in_a_child_and_formats(tmp_path):
     assert r["device"] == "cpu" and r["threads"] == 1 and 0 < r["median_s"] < 30 and r["peak_rss_gb"] > 0.05
     assets = [{"recipe": "r.yaml", "asset": "a", "detailizer": "upsample", "fine_grid": [256, 128, 64],
                "stages_s": dict.fromkeys(("source", "voxelize", "regions", "detailize", "mesh", "export"), 0.5),
-               "total_s": 3.0, "triangles": 1234, "repeats": 1}]
+               "total_s": 3.0, "triangles": 1234, "repeats": 1, "glb_bytes": 204800}]
     train = {"iterations": 2, "resolution": 256, "layout": "lean", "device": "cpu", "threads": 2,
              "early_s": 5.25, "later_s": 2.5}
-    md = bench_markdown(machine_info(), [r], assets, train, "random-lean")
+    reference = {"median_s": 0.25, "load_average": [1.0, 1.0, 1.0]}
+    md = bench_markdown(machine_info(), [r], assets, train, "random-lean", reference)
     assert "| upsample (baseline) | cpu | 1 |" in md and "| r.yaml | a | upsample | 256×128×64 |" in md
+    assert "| 3.00 | 12.0 | 1234 | 200 |" in md and "0.250 s" in md  # total, × reference, triangles, GLB KB
     assert "| early (4 reconstruction steps + 1 adversarial) | 5.25 |" in md and "cores" in md
 
 

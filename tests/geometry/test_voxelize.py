@@ -81,10 +81,10 @@ def test_fit_voxel_size_uses_the_given_size():
 
 def test_too_many_cells_is_refused_with_the_dims():
     with pytest.raises(VoxelizeError) as info:
-        _grid({"wide": _box((20.0, 1.0, 1.0))}, FitMode.HEIGHT)
+        _grid({"wide": _box((80.0, 1.0, 1.0))}, FitMode.HEIGHT)
     err = info.value
     assert err.field == "grid"
-    assert "320×16×16" in err.message and "max_cells = 256" in err.message
+    assert "1280×16×16" in err.message and "max_cells = 1024" in err.message
     assert err.hint.startswith("lower grid.resolution or raise grid.max_cells")
 
 

@@ -271,8 +271,49 @@ assets:
 """)
     out = tmp_path / "out"
     _build(recipe, "-o", out)
-    files = _manifest_entry(out, "tower")["inputs"]["files"]
+    entry = _manifest_entry(out, "tower")
+    files = entry["inputs"]["files"]
     assert files == [{"path": "../mine.pt", "sha256": files[0]["sha256"], "read_by": "detailizer"}]
+    assert entry["detailizer"]["checkpoint"] == "../mine.pt"
+
+
+def _absolute_strings(value, roots: tuple[str, ...]) -> list[str]:
+    """Every string inside a JSON value that names a place under one of ``roots``."""
+    if isinstance(value, dict):
+        return [s for v in value.values() for s in _absolute_strings(v, roots)]
+    if isinstance(value, list):
+        return [s for v in value for s in _absolute_strings(v, roots)]
+    return [value] if isinstance(value, str) and any(r in value for r in roots) else []
+
+
+def test_the_manifest_names_no_path_of_this_machine(recipe_dir, tmp_path):
+    """The shipped weights, the quilt's style set file and the recipe are written portably (issue 16)."""
+    recipe = recipe_dir / "portable.yaml"
+    recipe.write_text("""
+version: 1
+assets:
+  - name: learned
+    source: {kind: cad, parts: [{name: a, shape: box, size: [1, 1, 1]}]}
+    grid: {resolution: 6}
+    regions: [{part: bottom, style: tower}]
+    export: {max_triangles: 2000, preview: false}
+  - name: copied
+    source: {kind: cad, parts: [{name: a, shape: box, size: [1, 1, 1]}]}
+    grid: {resolution: 6}
+    regions: [{part: body, style: cottage}]
+    detailize: {detailizer: quilt}
+    export: {max_triangles: 2000, preview: false}
+""")
+    out = tmp_path / "out"
+    manifest = _build(str(recipe.resolve()), "-o", out)  # an absolute recipe path on the command line
+    assert manifest["summary"]["built"] == 2
+    learned = _manifest_entry(out, "learned")
+    assert learned["detailizer"]["checkpoint"] == "<decollage>/model/weights/things.pt"
+    assert _manifest_entry(out, "copied")["detailizer"]["style_set_path"] == "<styles>/things.npz"
+    text = (out / "manifest.json").read_text()
+    assert json.loads(text)["recipe"]["path"] == "../in/portable.yaml"
+    roots = (str(REPO), str(tmp_path), str(Path.home()))
+    assert _absolute_strings(json.loads(text), roots) == []
 
 
 # --------------------------------------------------------------------------- --jobs gives the same bytes

@@ -146,6 +146,23 @@ def test_drop_coincident_faces_removes_fins_and_degenerates():
     np.testing.assert_array_equal(drop_coincident_faces(faces), [[0, 1, 2], [5, 6, 7]])
 
 
+def test_bounded_smoothing_moves_no_vertex_farther_than_the_bound_and_keeps_block_borders():
+    rng = np.random.default_rng(0)
+    occ = np.zeros((30, 30, 30), np.float32)
+    occ[5:25, 5:25, 5:25] = 1.0
+    occ[5:25, 24, 5:25] = rng.random((20, 20)) > 0.5  # a rough face: terraces and spikes
+    from pipeline.mesh import crop_padded, marching_cubes, taubin_smooth
+
+    volume, start = crop_padded(occ, 0.4)
+    verts, faces = marching_cubes(volume, 0.4)
+    fixed = verts[:, 0] < 8
+    out = taubin_smooth(verts, faces, 20, fixed, max_shift=0.5)
+    assert np.abs(out - verts).max() <= 0.5 + 1e-6
+    np.testing.assert_array_equal(out[fixed], verts[fixed])
+    free = taubin_smooth(verts, faces, 20)
+    assert np.abs(free - verts).max() > 0.5  # the bound is what held them
+
+
 def test_taubin_smoothing_keeps_shape(sphere_grid, sphere_mesh):
     mesh = mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=None, taubin_iterations=5))
     assert mesh.is_watertight
@@ -200,8 +217,12 @@ def test_empty_or_invalid_field_raises_meshing_error():
 
 
 def test_mesh_settings_from_recipe_export_settings():
-    settings = MeshSettings.from_export(ExportSettings(taubin_iterations=3, max_triangles=None, vertex_colors=False))
+    settings = MeshSettings.from_export(ExportSettings(taubin_iterations=3, max_triangles=None, vertex_colors=False,
+                                                       taubin_max_shift_voxels=None))
     assert settings == MeshSettings(taubin_iterations=3, max_triangles=None, vertex_colors=False)
+    defaults = MeshSettings.from_export(ExportSettings(), np.ones((4, 4, 4), bool))
+    # the defaults: bounded smoothing, and the 'auto' budget of a prop (32 per exposed coarse face, at least 2000)
+    assert defaults == MeshSettings(taubin_iterations=8, taubin_max_shift=0.5, max_triangles=max(32 * 96, 2000))
     with pytest.raises(ValueError):
         MeshSettings(max_triangles=2)
 

@@ -17,7 +17,8 @@ import pytest
 from core.errors import ExportError, LockedError
 from core.files import write_bytes_atomic
 from pipeline.batch import build_task
-from pipeline.cache import PROJECT_PREFIX, portable_path, resolve_portable
+from pipeline.cache import PROJECT_PREFIX, STYLES_PREFIX, portable_path, resolve_portable
+from stylesets.format import style_dir
 from pipeline.executors import LocalExecutor, abandoned_work
 from pipeline.lock import BuildLock, lease_holds, read_holder
 from pipeline.report import AssetStatus
@@ -129,6 +130,9 @@ def test_closure_paths_are_portable(tmp_path):
     assert portable_path(tmp_path / "in" / "a.bin", tmp_path) == "in/a.bin"
     assert portable_path(tmp_path.parent / "b.bin", tmp_path) == "../b.bin"
     assert resolve_portable("../b.bin", tmp_path).resolve() == (tmp_path.parent / "b.bin").resolve()
+    built_set = style_dir() / "things.npz"
+    assert portable_path(built_set, tmp_path) == STYLES_PREFIX + "things.npz"
+    assert resolve_portable(STYLES_PREFIX + "things.npz", tmp_path) == built_set
 
 
 def test_script_reads_records_local_modules_and_data_files_only(tmp_path, monkeypatch):

@@ -1,0 +1,100 @@
+"""Block-by-block detailizing and meshing of long grids (pipeline/chunks.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+import pipeline.chunks as chunks
+from core.grid import UPSAMPLE_FACTOR, FineGrid, LabeledGrid
+from core.structure import strict_loose_iou
+from pipeline.chunks import Chunk, budget_shares, detailize_and_mesh, merge_extras, plan_chunks
+from pipeline.mesh import MeshSettings
+
+F = UPSAMPLE_FACTOR
+
+
+def bar_grid(length: int = 40) -> LabeledGrid:
+    """A bar along x with a bump every 7 cells and two styles in bands of 10 cells: surface crosses every seam."""
+    occ = np.zeros((length, 4, 3), bool)
+    occ[:, 1:3, 1:2] = True
+    occ[::7, 3, 1] = True
+    style = np.where(occ, np.arange(length)[:, None, None] // 10 % 2, -1).astype(np.int16)
+    return LabeledGrid(occ, np.where(occ, 0, -1).astype(np.int16), style, ("body",), ("brick", "slate"), 0.1,
+                       (0.5, -0.2, 0.0))
+
+
+def local_detailizer(grid: LabeledGrid) -> FineGrid:
+    """A detailizer whose output at a voxel depends only on cells within 1 coarse cell (the halo is 2)."""
+    fine = grid.occupancy.repeat(F, 0).repeat(F, 1).repeat(F, 2).astype(np.float32)
+    fine = ndimage.gaussian_filter(fine, 1.5, truncate=4.0)  # radius 6 fine voxels
+    x = np.arange(fine.shape[0])[:, None, None] + grid.origin_m[0] / grid.voxel_size_m * F
+    fine *= (0.9 + 0.1 * np.sin(x * 0.37)).astype(np.float32)  # vertices off round positions, same in every block
+    style = np.maximum(grid.style, 0).repeat(F, 0).repeat(F, 1).repeat(F, 2)
+    return FineGrid(fine, style, grid.style_names, grid.voxel_size_m / F, grid.origin_m,
+                    extras={"exemplars": [f"ex{int(grid.origin_m[0] * 10)}"], "seed": 0})
+
+
+@pytest.fixture
+def small_blocks(monkeypatch):
+    monkeypatch.setattr(chunks, "WHOLE_MAX_CELLS", 16)
+    monkeypatch.setattr(chunks, "CHUNK_CELLS", 12)
+
+
+def test_plan_covers_the_columns_once_with_a_halo(small_blocks):
+    assert plan_chunks(16) == [Chunk(0, 16, 0, 16)]
+    plan = plan_chunks(40)
+    assert [(c.start, c.stop) for c in plan] == [(0, 12), (12, 24), (24, 36), (36, 40)]
+    assert [(c.lo, c.hi) for c in plan] == [(0, 14), (10, 26), (22, 38), (34, 40)]
+    assert chunks.detail_shape((40, 4, 3)) == (16, 4, 3)
+
+
+def test_blocks_join_into_the_same_closed_mesh_as_the_whole_grid(small_blocks, monkeypatch):
+    grid = bar_grid()
+    settings = MeshSettings(max_triangles=None)
+    parts = detailize_and_mesh(grid, local_detailizer, settings)
+    monkeypatch.setattr(chunks, "WHOLE_MAX_CELLS", 1000)
+    whole = detailize_and_mesh(grid, local_detailizer, settings)
+    assert parts.chunks == 4 and whole.chunks == 1 and parts.fine is None and whole.fine is not None
+    assert parts.mesh.is_watertight and whole.mesh.is_watertight
+    # the same surface: the same vertices (welded on the seams; float32 rounding apart) and as many faces
+    assert len(parts.mesh.vertices) == len(whole.mesh.vertices) and len(parts.mesh.faces) == len(whole.mesh.faces)
+    gap, _ = cKDTree(whole.mesh.vertices).query(parts.mesh.vertices)
+    assert gap.max() < 1e-6
+    assert parts.mesh.volume == pytest.approx(whole.mesh.volume, rel=1e-6)
+    strict, loose = strict_loose_iou(whole.fine.occupancy, grid.occupancy)
+    assert parts.structure == {"strict_iou": round(strict, 4), "loose_iou": round(loose, 4)}
+    assert parts.fine_shape == tuple(n * F for n in grid.shape)
+    # colours follow the style bands across seams
+    colours = {tuple(c) for c in np.asarray(parts.mesh.visual.vertex_colors)}
+    assert len(colours) == 2
+
+
+@pytest.mark.parametrize("taubin", [0, 3])
+def test_decimated_and_smoothed_blocks_stay_closed_within_the_budget(small_blocks, taubin):
+    grid = bar_grid()
+    result = detailize_and_mesh(grid, local_detailizer, MeshSettings(max_triangles=6000, taubin_iterations=taubin))
+    assert result.mesh.is_watertight and result.mesh.volume > 0
+    assert 0.8 * 6000 <= len(result.mesh.faces) <= 6000
+
+
+def test_budget_follows_the_coarse_surface(small_blocks):
+    grid = bar_grid()
+    plan = plan_chunks(grid.shape[0])
+    shares = budget_shares(grid.occupancy, plan, 10_000)
+    assert sum(shares) <= 10_000
+    assert shares[-1] < shares[0]  # the last block has 4 columns, the first 12
+    assert budget_shares(grid.occupancy, plan, None) == [None] * 4
+
+
+def test_extras_of_blocks_are_merged():
+    merged = merge_extras([{"exemplars": ["a", "b"], "seed": 1}, {"exemplars": ["b", "c"], "seed": 2}])
+    assert merged == {"exemplars": ["a", "b", "c"], "seed": 1}
+
+
+def test_timings_are_added_per_stage(small_blocks):
+    timings: dict[str, float] = {}
+    detailize_and_mesh(bar_grid(), local_detailizer, MeshSettings(max_triangles=4000), timings)
+    assert set(timings) == {"detailize", "mesh"} and all(t > 0 for t in timings.values())
