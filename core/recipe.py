@@ -170,7 +170,7 @@ class GlbCompression(str, Enum):
 
     none: plain float32 attributes (every glTF reader loads them);
     meshopt: quantized attributes (KHR_mesh_quantization) compressed with EXT_meshopt_compression
-    (pipeline/glb_meshopt.py), about a tenth of the size; readers need meshopt's decoder.
+    (pipeline/glb_meshopt.py), about a fifth of the size; readers need meshopt's decoder.
     """
 
     NONE = "none"
@@ -543,7 +543,7 @@ class ExportSettings(_Strict):
     pivot: Pivot = Pivot.BOTTOM_CENTER
     vertex_colors: bool = True
     compression: GlbCompression = Field(GlbCompression.NONE, description="GLB geometry: 'none' (plain, every "
-                                        "reader) or 'meshopt' (quantized + EXT_meshopt_compression, ~10× smaller; "
+                                        "reader) or 'meshopt' (quantized + EXT_meshopt_compression, ~5× smaller; "
                                         "readers need meshopt's decoder, as three.js, Unity glTFast, Godot 4 have).")
     glb_material: bool = Field(False, description="Give GLBs a white matte material, for viewers whose default "
                                "glTF material (fully metallic) shows vertex colours too dark.")
