@@ -455,7 +455,7 @@ class GridSettings(_Strict):
     voxel_size_m: Optional[VoxelMetres] = Field(None, description="Only with fit: voxel_size.")
     max_cells: int = Field(
         1024, ge=4, le=1024,
-        description="Largest allowed coarse grid side. Grids longer than 128 cells along x (long text) are "
+        description="Largest allowed coarse grid side. Grids longer than 64 cells along x (long text) are "
                     "detailized and meshed block by block, so their memory does not grow with their length; "
                     "the per-asset memory estimate (core/budget.py) guards the other sides.")
     min_coverage: float = Field(0.5, gt=0, le=1, description="Fraction of a cell a shape must fill to occupy it.")
