@@ -480,7 +480,7 @@ def _protocol_sheet(path: Path, ids: list[str]) -> None:
 
 IMPORT_RECIPE = """version: 1
 defaults:
-  detailize: {{detailizer: quilt, checkpoint: {set_name}, seed: 0}}
+  detailize: {{detailizer: quilt, style_set: {set_name}, seed: 0}}
 assets:
   - name: hi_{style}
     source: {{kind: text, text: HI, size_m: 0.5, depth_m: 0.15}}

@@ -94,9 +94,8 @@ def evaluate_rows(out: Path, limit: int, cls: str, say=print) -> None:
     """Evaluate every trained row not yet evaluated with this ``limit`` and ``cls`` (see the module docstring)."""
     import torch
 
-    from evaluation.evaluate import evaluate, exemplar_shapes, write_report
+    from evaluation.evaluate import evaluate, write_report
     from model.infer import cpu_threads
-    from evaluation.patch_index import style_patch_dictionary
     from core.detailizer import get_detailizer
     from evaluation.protocol import check_detailizer, load_protocol, resolve_protocol_set
     from core.files import ensure_writable_dir
@@ -118,13 +117,12 @@ def evaluate_rows(out: Path, limit: int, cls: str, say=print) -> None:
         ensure_writable_dir(out / f"eval_{row}")
     protocol = load_protocol()
     style_set = resolve_protocol_set(protocol)
-    t = time.perf_counter()
-    dictionary = style_patch_dictionary(exemplar_shapes(style_set))
-    say(f"style dictionary built in {time.perf_counter() - t:.0f} s; evaluating {', '.join(todo)}")
+    say(f"evaluating {', '.join(todo)}")
     for row in todo:
         det = get_detailizer("decollage", str(out / f"{row}.pt"), "cpu")
         check_detailizer(protocol, det)
-        report = evaluate(protocol, det, style_set, cls=cls, limit=limit, device="cpu", dictionary=dictionary)
+        report = evaluate(protocol, det, style_set, cls=cls, limit=limit, split=None,
+                          self_rec=False, device="cpu")
         write_report(report, out / f"eval_{row}")
         m = report["means"]
         say(f"{row}: " + ", ".join(f"{k} {m[k]:.3f}" for k in (*METRICS, "cls")

@@ -1,24 +1,31 @@
-"""Run an evaluation protocol through a detailizer and measure the paper's five metrics (method.md §5).
+"""Run an evaluation protocol through a detailizer: detail figures first, the paper's beside them.
 
-Per output (content × style assignment of ``evaluation.protocol``):
+Per output of the protocol's chosen split (content × style assignment of
+``evaluation.protocol``; ``split="test"`` for acceptance figures, "dev" for
+choices, None for every output):
 
 * the detailizer's fine output, binarised at ISO_LEVEL (0.4);
 * Strict-IOU and Loose-IOU against the coarse content (max-pool ×16);
-* LP-IOU and LP-F-score of 1000 surface patches (seed = the output's index)
-  against the dictionary of *all* the style set's exemplars (as the reference
-  builds it against the whole style split);
-* its views for the Cls-score (seed = the output's index).
+* 1000 surface patches (seed = the output's index), each owned by the style
+  of the coarse region at its centre, for LP-detail, style specificity and
+  the paper's LP-IOU / LP-F (``evaluation.detail``);
+* its views for the paper's Cls (seed = the output's index).
 
-Cls is one classifier for the whole run: real = the style set's exemplars
-(view seeds 100000 + i), fake = every evaluated output; it is measured on
-held-out views (``evaluation.cls_score``), and each output's own held-out fake
-accuracy is kept so the worst outputs can be found. ``cls="none"`` skips the
-renders and the classifier; ``"quick"`` uses fewer views and steps. The
-report records the variant.
+Then the self-reconstruction cases (``evaluation.selfrec``): IOU at 256³,
+Chamfer, LP-detail and LP-IOU against the own exemplar, and the
+shape-matched Cls (real = the held-out augmentations' true fine shapes,
+fake = their detailized coarse grids, same views, held-out views scored).
 
-``evaluate`` returns a JSON-ready dict; ``write_report`` writes ``eval.json``
-and ``eval.md`` (a markdown table of the means, overall and per content kind
-and single/mixed styles).
+The patch search visits the exemplars one at a time after every output is
+sampled (memory: one exemplar's table). Every figure gets a bootstrap 95 %
+interval over contents (protocol outputs) or exemplars (self-reconstruction;
+``evaluation.intervals``); with ``baseline`` (another report, e.g. upsample's),
+paired differences against it on the same outputs and cases.
+
+The paper's Cls (exemplars as real, every output as fake) is kept as an
+extra; ``cls`` chooses the variant of both classifiers ("full", "quick",
+"none"). ``evaluate`` returns a JSON-ready dict; ``write_report`` writes
+``eval.json`` and ``eval.md`` (``evaluation.eval_report``).
 """
 
 from __future__ import annotations
@@ -26,14 +33,17 @@ from __future__ import annotations
 import os
 import platform
 import time
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from core.grid import ISO_LEVEL
+from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR as UPSAMPLE
+from evaluation.eval_report import markdown, write_report  # noqa: F401  (the report's writers, re-exported)
 
+#: The paper's per-output figures (kept for comparison; ``benchmarks/eval_ablations.py`` reads them).
 METRICS = ("strict_iou", "loose_iou", "lp_iou", "lp_f")
 REAL_VIEW_SEED = 100_000
 
@@ -83,9 +93,18 @@ class _Timer:
         self.totals[key] = self.totals.get(key, 0.0) + seconds
 
 
-def _mean(rows: list[dict], key: str) -> float | None:
-    vals = [r[key] for r in rows if r.get(key) is not None]
-    return float(np.mean(vals)) if vals else None
+@contextmanager
+def _one_thread():
+    """Torch on one thread inside: the splatting renderer and the small Cls network gain nothing from a
+    second, contended core (the full classifier took 6 min on two threads at load average 3.5)."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 def pick_outputs(outputs, limit: int | None) -> list:
@@ -103,191 +122,177 @@ def exemplar_shapes(style_set) -> list[np.ndarray]:
 
 
 def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int | None = None,
-             device: str = "cpu", progress: Callable[[str], None] | None = None, dictionary=None) -> dict:
-    """Evaluate ``detailizer`` on ``protocol`` (first ``limit`` outputs if given).
+             split: str | None = "test", self_rec: bool = True, n_aug: int | None = None, device: str = "cpu",
+             progress: Callable[[str], None] | None = None, baseline: dict | None = None) -> dict:
+    """Evaluate ``detailizer`` on ``protocol`` (see the module docstring).
 
     Args:
         protocol: a ``evaluation.protocol.Protocol`` (already checked against the detailizer).
         detailizer: a pipeline Detailizer.
         style_set: the loaded ``stylesets.format.StyleSet`` the protocol's styles come from.
-        limit: evaluate only this many outputs, spread evenly (``pick_outputs``).
-        cls: "full", "quick" or "none".
-        device: torch device for the LP search and the Cls classifier.
+        cls: "full", "quick" or "none" (both classifiers).
+        limit: evaluate only this many outputs of the split, spread evenly (``pick_outputs``).
+        split: "test", "dev" or None (every output; the only choice for a version 1 protocol).
+        self_rec: run the self-reconstruction suite and the shape-matched Cls.
+        n_aug: held-out augmentations per exemplar (default ``selfrec.N_AUG``).
+        device: torch device of the classifiers.
         progress: callable(line) for progress messages.
-        dictionary: the ``metrics.StyleDictionary`` of ``style_set`` when the caller already has it
-            (several detailizers evaluated in one process: it costs about 2 minutes to build);
-            None = build it here. Its build time is then not in the report's timings.
+        baseline: a report of another detailizer on the same split (paired differences against it).
     Returns:
-        The report (see ``write_report``).
+        The report (see ``evaluation.eval_report``).
     """
+    import resource
+
     import torch
 
-    from evaluation.cls_score import CLS_VARIANTS, ViewBank, cls_score
     from core.structure import strict_loose_iou
-    from evaluation.lp import lp_scores
-    from evaluation.patch_index import style_patch_dictionary
-    from evaluation.render_eval import render_views
+    from evaluation.cls_score import CLS_VARIANTS, ViewBank
+    from evaluation.detail import PatchRecords, match_all, patch_owners, region_exemplars
+    from evaluation.eval_report import summarise
     from evaluation.protocol import set_digest
+    from evaluation.render_eval import render_views
+    from evaluation.selfrec import N_AUG, case_figures, self_cases
 
     say = progress or (lambda line: None)
     started = time.perf_counter()
     machine_start = machine_info(device)
     timer = _Timer({})
-    outputs = pick_outputs(protocol.outputs, limit)
+    outputs = pick_outputs(protocol.outputs_of(split), limit)
     cls_cfg = CLS_VARIANTS.get(cls) if cls != "none" else None
     if cls != "none" and cls_cfg is None:
         raise ValueError(f"unknown Cls variant {cls!r}")
+    names = [e.name for e in style_set.exemplars]
+    categories = [e.category for e in style_set.exemplars]
+    style_index = {n: i for i, n in enumerate(names)}
+    R = style_set.resolution
 
-    t = time.perf_counter()
-    exemplars = exemplar_shapes(style_set)
-    if dictionary is None:
-        dictionary = style_patch_dictionary(exemplars)
-        timer.add("dictionary_s", time.perf_counter() - t)
-    dictionary = dictionary.to(device)
-    say(f"style dictionary: {len(dictionary.occ_count)} occupancy + {len(dictionary.surf_count)} surface patches "
-        f"of {len(exemplars)} exemplars ({time.perf_counter() - t:.1f} s)")
+    def exemplar(e: int) -> np.ndarray:
+        return style_set.exemplars[e].full(R) > 0
+
     real = fake = None
     if cls_cfg is not None:
         t = time.perf_counter()
-        real = ViewBank(cls_cfg.n_views, cls_cfg.test_views)
-        for i, shape in enumerate(exemplars):
-            real.add(render_views(shape, cls_cfg.n_views, seed=REAL_VIEW_SEED + i))
-        fake = ViewBank(cls_cfg.n_views, cls_cfg.test_views)
+        real, fake = ViewBank(cls_cfg.n_views, cls_cfg.test_views), ViewBank(cls_cfg.n_views, cls_cfg.test_views)
+        for e in range(len(names)):
+            with _one_thread():
+                real.add(render_views(exemplar(e), cls_cfg.n_views, seed=REAL_VIEW_SEED + e))
         timer.add("render_real_s", time.perf_counter() - t)
-        say(f"exemplar views: {len(exemplars)} × {cls_cfg.n_views} ({time.perf_counter() - t:.1f} s)")
-    del exemplars
 
     kinds = {cid: info.get("kind", "?") for cid, info in protocol.content_info.items()}
+    records = PatchRecords()
     rows = []
     loop_start = time.perf_counter()
     for n, out in enumerate(outputs):
         t0 = time.perf_counter()
         grid = protocol.grid(out)
-        fine = detailizer.detailize(grid, seed=0)
-        binary = torch.from_numpy(np.asarray(fine.occupancy) > ISO_LEVEL)
+        binary = np.asarray(detailizer.detailize(grid, seed=0).occupancy) > ISO_LEVEL
         t1 = time.perf_counter()
         strict, loose = strict_loose_iou(binary, grid.occupancy)
-        lp_iou, lp_f = lp_scores(binary.to(device) if device != "cpu" else binary, dictionary, seed=out.index)
+        regions = region_exemplars(grid, style_index)
+        records.add(out.id, binary, lambda pos: patch_owners(pos, regions, UPSAMPLE), seed=out.index)
         t2 = time.perf_counter()
         if fake is not None:
-            fake.add(render_views(binary, cls_cfg.n_views, seed=out.index))
+            with _one_thread():
+                fake.add(render_views(torch.from_numpy(binary), cls_cfg.n_views, seed=out.index))
         t3 = time.perf_counter()
         timer.add("detailize_s", t1 - t0)
-        timer.add("metrics_s", t2 - t1)
+        timer.add("patches_s", t2 - t1)
         timer.add("render_s", t3 - t2)
         rows.append({"id": out.id, "content": out.content, "kind": kinds.get(out.content, "?"), "mixed": out.mixed,
-                     "styles": out.styles, "strict_iou": strict, "loose_iou": loose, "lp_iou": lp_iou, "lp_f": lp_f,
-                     "occupied_fine": int(binary.sum()), "seconds": round(t3 - t0, 3)})
+                     "split": protocol.split_of(out.content), "styles": out.styles, "strict_iou": strict,
+                     "loose_iou": loose, "occupied_fine": int(binary.sum()), "seconds": round(t3 - t0, 3)})
         eta = (time.perf_counter() - loop_start) / (n + 1) * (len(outputs) - n - 1)
-        say(f"[{n + 1}/{len(outputs)}] {out.id}: strict {strict:.3f} loose {loose:.3f} LP-IOU {lp_iou:.3f} "
-            f"LP-F {lp_f:.3f} ({t1 - t0:.2f} + {t2 - t1:.2f} + {t3 - t2:.2f} s; ETA {eta / 60:.1f} min)")
+        say(f"[{n + 1}/{len(outputs)}] {out.id}: strict {strict:.3f} loose {loose:.3f} "
+            f"({t1 - t0:.2f} + {t2 - t1:.2f} + {t3 - t2:.2f} s; ETA {eta / 60:.1f} min)")
+        del binary
 
-    cls_json = None
-    if cls_cfg is not None and rows:
-        t = time.perf_counter()
-        say(f"Cls ({cls_cfg.variant}): training the classifier on {len(real.train)} real + {len(fake.train)} fake "
-            f"views, testing on {len(real.test)} + {len(fake.test)} held-out views")
-        result = cls_score(real, fake, cls_cfg, device=device,
-                           progress=lambda s, total: say(f"  Cls step {s}/{total}"))
-        timer.add("cls_s", time.perf_counter() - t)
-        for row, acc in zip(rows, result.fake_acc_per_shape):
-            row["cls_fake_acc"] = acc
-        cls_json = result.to_json()
-        cls_json["real_acc_per_exemplar"] = dict(zip([e.name for e in style_set.exemplars],
-                                                    cls_json.pop("real_acc_per_shape")))
-        cls_json.pop("fake_acc_per_shape")
-        say(f"Cls ({cls_cfg.variant}) = {result.cls:.3f} (real acc {result.real_acc:.3f}, fake acc "
-            f"{result.fake_acc:.3f}; {time.perf_counter() - t:.1f} s)")
+    cases, case_rows, case_records = [], [], PatchRecords()
+    m_real = m_fake = None
+    if self_rec:
+        cases = self_cases(style_set, n_aug=N_AUG if n_aug is None else n_aug)
+        if cls_cfg is not None:
+            m_real, m_fake = (ViewBank(cls_cfg.n_views, cls_cfg.test_views) for _ in range(2))
+        for n, case in enumerate(cases):
+            t0 = time.perf_counter()
+            grid = case.grid(tuple(style_set.vocabulary.parts))
+            binary = np.asarray(detailizer.detailize(grid, seed=0).occupancy) > ISO_LEVEL
+            t1 = time.perf_counter()
+            figures = case_figures(binary, case)
+            case_records.add(case.id, binary, case.exemplar, seed=n)
+            if m_real is not None and case.held_out:
+                seed = 200_000 + n  # the same views of the true shape and of the output
+                with _one_thread():
+                    m_real.add(render_views(case.fine, cls_cfg.n_views, seed=seed))
+                    m_fake.add(render_views(torch.from_numpy(binary), cls_cfg.n_views, seed=seed))
+            t2 = time.perf_counter()
+            timer.add("selfrec_detailize_s", t1 - t0)
+            timer.add("selfrec_figures_s", t2 - t1)
+            case_rows.append({"id": case.id, "exemplar": case.name, "category": categories[case.exemplar],
+                              "held_out": case.held_out, **figures, "seconds": round(t2 - t0, 3)})
+            say(f"[self {n + 1}/{len(cases)}] {case.id}: IOU {figures['iou']:.3f} "
+                f"chamfer {figures['chamfer'] if figures['chamfer'] is None else round(figures['chamfer'], 2)}")
+            del binary
+        del cases
+
+    t = time.perf_counter()
+    say(f"patch search: {len(names)} exemplars, one at a time")
+    search = match_all([records, case_records], exemplar, names, categories, progress=say)
+    timer.add("patch_search_s", time.perf_counter() - t)
+    for row, sc in zip(rows, (records.scores()[r["id"]] for r in rows)):
+        row.update(sc)
+    case_scores = case_records.scores()
+    for row in case_rows:
+        sc = case_scores[row["id"]]
+        row.update(lp_detail=sc["lp_detail"], lp_iou=sc["own_lp_iou"], extrusions=sc["extrusions"],
+                   patches=sc["patches"])
+
+    classifiers = {}
+    if cls_cfg is not None:
+        from evaluation.cls_score import cls_score
+
+        for key, (r_bank, f_bank) in (("matched_cls", (m_real, m_fake)), ("paper_cls", (real, fake))):
+            if r_bank is None or r_bank.n_shapes == 0 or f_bank.n_shapes == 0:
+                continue
+            t = time.perf_counter()
+            say(f"{key} ({cls_cfg.variant}): {r_bank.n_shapes} real + {f_bank.n_shapes} fake shapes")
+            with _one_thread() if device == "cpu" else nullcontext():  # small convolutions: one thread is faster
+                result = cls_score(r_bank, f_bank, cls_cfg, device=device)
+            timer.add(f"{key}_s", time.perf_counter() - t)
+            classifiers[key] = result.to_json()
+            say(f"{key} = {result.cls:.3f} (real acc {result.real_acc:.3f}, fake acc {result.fake_acc:.3f})")
+        if "matched_cls" in classifiers:  # per held-out case: (real acc + fake acc) / 2 of its own pair
+            mc = classifiers["matched_cls"]
+            held = [r for r in case_rows if r["held_out"]]
+            for r, ra, fa in zip(held, mc["real_acc_per_shape"], mc["fake_acc_per_shape"]):
+                r["matched_cls"] = (ra + fa) / 2
+        if "paper_cls" in classifiers:
+            for row, acc in zip(rows, classifiers["paper_cls"]["fake_acc_per_shape"]):
+                row["cls_fake_acc"] = acc
 
     total = time.perf_counter() - started
-    means = {k: _mean(rows, k) for k in METRICS}
-    means["cls"] = cls_json["cls"] if cls_json else None
-    groups = {}
-    for name, pick in [*((f"kind={k}", (lambda r, k=k: r["kind"] == k)) for k in dict.fromkeys(kinds.values())),
-                       ("single style", lambda r: not r["mixed"]), ("mixed styles", lambda r: r["mixed"])]:
-        sel = [r for r in rows if pick(r)]
-        if sel:
-            groups[name] = {"n": len(sel), **{k: _mean(sel, k) for k in METRICS},
-                            "cls_fake_acc": _mean(sel, "cls_fake_acc")}
     timings = {k: round(v, 2) for k, v in timer.totals.items()}
-    timings["total_s"] = round(total, 1)
-    timings["per_output_s"] = round((timer.totals.get("detailize_s", 0) + timer.totals.get("metrics_s", 0)
-                                     + timer.totals.get("render_s", 0)) / max(1, len(rows)), 3)
-    timings["per_output_all_in_s"] = round(total / max(1, len(rows)), 3)
-    return {
-        "format": "decollage-eval", "version": 1,
-        "protocol": {"name": protocol.name, "path": str(protocol.path),
+    timings.update(total_s=round(total, 1), per_output_all_in_s=round(total / max(1, len(rows) + len(case_rows)), 3),
+                   peak_rss_gb=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2, 2),
+                   **search)
+    report = {
+        "format": "decollage-eval", "version": 2,
+        "protocol": {"name": protocol.name, "path": str(protocol.path), "split": split,
                      "contents_sha256": protocol.meta.get("contents_sha256"),
-                     "outputs": len(protocol.outputs), "evaluated": len(rows), "limit": limit},
+                     "outputs": len(protocol.outputs), "in_split": len(protocol.outputs_of(split)),
+                     "evaluated": len(rows), "limit": limit},
         "detailizer": detailizer.describe(),
-        "style_set": {"name": style_set.name, "inputs_hash": style_set.inputs_hash,
-                      "exemplars": len(style_set.exemplars),
+        "style_set": {"name": style_set.name, "inputs_hash": style_set.inputs_hash, "exemplars": len(names),
                       "matches_protocol": set_digest(style_set) == protocol.meta.get("style_set_digest")},
         "cls_variant": cls_cfg.variant if cls_cfg else "none",
-        "means": means,
-        "groups": groups,
-        "cls": cls_json,
+        "classifiers": classifiers,
+        "search": records.stats.to_json() | {"selfrec_pairs": case_records.stats.pairs,
+                                             "selfrec_capped": case_records.stats.capped},
         "timings": timings,
         "machine": {**machine_info(device), "load_average_start": machine_start.get("load_average")},
         "outputs": rows,
+        "selfrec": case_rows,
     }
+    report.update(summarise(report, baseline))
+    return report
 
 
-def _fmt(v, digits: int = 3) -> str:
-    return "–" if v is None else f"{v:.{digits}f}"
-
-
-def markdown(report: dict) -> str:
-    """The report as markdown: a table of the means, groups, Cls details, timings and the machine."""
-    det = report["detailizer"]
-    name = det.get("name", "?") + (f" ({Path(det['checkpoint']).name})" if det.get("checkpoint") else "")
-    ablation = (det.get("training") or {}).get("ablation")
-    if ablation and ablation != "full":  # a Table 4 row or baseline trained by the same code (model.ablations)
-        name += f", ablation `{ablation}`"
-    m, t, mach = report["means"], report["timings"], report["machine"]
-    p = report["protocol"]
-    lines = [
-        f"### Evaluation: {name} on {p['name']} ({p['evaluated']} of {p['outputs']} outputs)",
-        "",
-        f"Cls variant: **{report['cls_variant']}**"
-        + (f" ({report['cls']['config']['n_views']} views a shape, {report['cls']['config']['test_views']} held out, "
-           f"{report['cls']['config']['steps']} steps); lower is better, 0.5 ideal." if report["cls"] else "."),
-        "Strict/Loose-IOU, LP-IOU, LP-F: higher is better.",
-        "",
-        "| detailizer | outputs | Strict-IOU | Loose-IOU | LP-IOU | LP-F | Cls |",
-        "|---|---|---|---|---|---|---|",
-        f"| {name} | {p['evaluated']} | {_fmt(m['strict_iou'])} | {_fmt(m['loose_iou'])} | {_fmt(m['lp_iou'])} | "
-        f"{_fmt(m['lp_f'])} | {_fmt(m['cls'])} ({report['cls_variant']}) |",
-        "",
-        "| group | outputs | Strict-IOU | Loose-IOU | LP-IOU | LP-F | fake acc. (held-out) |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for g, v in report["groups"].items():
-        lines.append(f"| {g} | {v['n']} | {_fmt(v['strict_iou'])} | {_fmt(v['loose_iou'])} | {_fmt(v['lp_iou'])} | "
-                     f"{_fmt(v['lp_f'])} | {_fmt(v.get('cls_fake_acc'))} |")
-    lines += ["", f"Timings: total {t['total_s']:.0f} s; {t['per_output_all_in_s']:.2f} s per output all in "
-              f"(detailize {t.get('detailize_s', 0):.0f} s, IOU + LP {t.get('metrics_s', 0):.0f} s, "
-              f"views {t.get('render_s', 0):.0f} s, style dictionary {t.get('dictionary_s', 0):.0f} s, "
-              f"exemplar views {t.get('render_real_s', 0):.0f} s, Cls classifier {t.get('cls_s', 0):.0f} s).",
-              f"Machine: {mach.get('processor')}, {mach.get('cpu_count')} cores, {mach.get('memory_gb', '?')} GB, "
-              f"torch {mach.get('torch')} ({mach.get('torch_threads')} threads), device {mach.get('device')}"
-              + (f", GPU {mach['cuda']}" if mach.get("cuda") else "")
-              + f"; load average {mach.get('load_average_start')} at the start, {mach.get('load_average')} at the end.",
-              ""]
-    if not report["style_set"]["matches_protocol"]:
-        lines.insert(-1, "Note: the style set's exemplars differ from those the protocol was made from "
-                         "(regenerate it with `python benchmarks/make_protocol.py`).")
-    return "\n".join(lines)
-
-
-def write_report(report: dict, out_dir: Path) -> tuple[Path, Path]:
-    """Write ``eval.json`` and ``eval.md`` into ``out_dir`` (atomic writes)."""
-    import json
-
-    from core.files import write_bytes_atomic
-
-    out_dir = Path(out_dir)
-    js, md = out_dir / "eval.json", out_dir / "eval.md"
-    write_bytes_atomic(js, (json.dumps(report, indent=1) + "\n").encode())
-    write_bytes_atomic(md, markdown(report).encode())
-    return js, md

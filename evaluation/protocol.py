@@ -6,6 +6,11 @@ A protocol is two files side by side in ``evaluation/protocols/``:
   vocabulary, the style names, one record per content (id, kind, how it was
   made, coarse shape) and the exact list of outputs: content × style
   assignment (part → style name), in evaluation order;
+* from version 2, ``split``: the contents of ``dev`` and of ``test`` (half of
+  every kind each, ``make_split``). Choices of checkpoints, recipes and
+  thresholds are made on dev; acceptance figures are reported on test. The
+  shipped ``things_v2.json`` is ``things_v1.json`` (same contents file, same
+  outputs) with that split (``with_split``); v1 files stay readable, without a split;
 * ``<name>.npz`` — the coarse contents as int8 label grids (−1 empty, else the
   index of the part in the vocabulary), one array per content id; its sha256 is
   in the JSON, so a stale pair is refused.
@@ -47,9 +52,15 @@ if TYPE_CHECKING:  # pragma: no cover
     from core.grid import LabeledGrid
 
 FORMAT = "decollage-eval-protocol"
-FORMAT_VERSION = 1
+#: Version 2 adds the fixed dev/test split of the contents; version 1 files (no split) stay readable.
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 PROTOCOL_DIR = Path(__file__).resolve().parent / "protocols"
-DEFAULT_PROTOCOL = PROTOCOL_DIR / "things_v1.json"
+DEFAULT_PROTOCOL = PROTOCOL_DIR / "things_v2.json"
+#: The two halves of a v2 protocol: choices (checkpoints, recipes, thresholds) on dev, figures on test.
+SPLITS = ("dev", "test")
+#: Salt of the split's content order (see ``make_split``).
+SPLIT_SALT = "decollage-eval-split-v2"
 #: Seed of the exemplar augmentations and of the mixed style draws (never a training seed).
 HELD_OUT_SEED = 9_900_001
 N_SINGLE, N_MIXED = 8, 8
@@ -94,6 +105,29 @@ class Protocol:
     content_info: dict[str, dict]
     outputs: tuple[OutputSpec, ...]
     meta: dict
+    split: dict[str, tuple[str, ...]] | None = None
+
+    def outputs_of(self, split: str | None) -> tuple[OutputSpec, ...]:
+        """The outputs of the contents of ``split`` ("dev" or "test"), or all of them for None.
+
+        Raises:
+            ProtocolError: a split asked of a protocol without one (version 1), or an unknown split name.
+        """
+        if split is None:
+            return self.outputs
+        if split not in SPLITS:
+            raise ProtocolError(f"unknown split {split!r}", field="--split", hint="dev or test")
+        if self.split is None:
+            raise ProtocolError("this protocol has no dev/test split (a version 1 file)", file=self.path,
+                                field="split", hint=f"use {DEFAULT_PROTOCOL.name}, or evaluate every output")
+        keep = set(self.split[split])
+        return tuple(o for o in self.outputs if o.content in keep)
+
+    def split_of(self, content: str) -> str | None:
+        """"dev" or "test" for a content of a split protocol, None otherwise."""
+        if self.split is None:
+            return None
+        return next((name for name in SPLITS if content in self.split[name]), None)
 
     def grid(self, output: OutputSpec, voxel_size_m: float = 0.1) -> "LabeledGrid":
         """The coarse LabeledGrid of an output: the content's parts, each in its assigned style."""
@@ -134,8 +168,9 @@ def load_protocol(path: str | Path = DEFAULT_PROTOCOL) -> Protocol:
         raise _bad(path, f"cannot read it as JSON ({type(exc).__name__})") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise _bad(path, "it is not a decollage evaluation protocol", hint="give a protocol .json file")
-    if meta.get("version") != FORMAT_VERSION:
-        raise _bad(path, f"format version {meta.get('version')} is not the supported {FORMAT_VERSION}")
+    if meta.get("version") not in READABLE_VERSIONS:
+        raise _bad(path, f"format version {meta.get('version')} is not one of the supported "
+                         f"{', '.join(map(str, READABLE_VERSIONS))}")
     try:
         parts = tuple(str(p) for p in meta["parts"])
         styles = tuple(str(s) for s in meta["styles"])
@@ -176,9 +211,62 @@ def load_protocol(path: str | Path = DEFAULT_PROTOCOL) -> Protocol:
         outputs.append(OutputSpec(oid, i, content, assign, len(set(assign.values())) > 1))
     if len({o.id for o in outputs}) != len(outputs):
         raise _bad(path, "output ids repeat")
+    split = _read_split(path, meta, set(records)) if meta["version"] >= 2 else None
     return Protocol(name=str(meta.get("name", path.stem)), path=path, style_set=str(meta.get("style_set", "")),
                     parts=parts, styles=styles, contents=contents, content_info=records, outputs=tuple(outputs),
-                    meta=meta)
+                    meta=meta, split=split)
+
+
+def _read_split(path: Path, meta: dict, content_ids: set[str]) -> dict[str, tuple[str, ...]]:
+    """The v2 ``split`` field: every content in exactly one of dev and test."""
+    raw = meta.get("split")
+    if not isinstance(raw, dict) or set(raw) != set(SPLITS):
+        raise ProtocolError("a version 2 protocol needs a split with 'dev' and 'test' content lists",
+                            file=path, field="split")
+    split = {k: tuple(str(c) for c in raw[k]) for k in SPLITS}
+    both = set(split["dev"]) & set(split["test"])
+    listed = set(split["dev"]) | set(split["test"])
+    if both or listed != content_ids or any(len(set(v)) != len(v) for v in split.values()):
+        raise ProtocolError("the split must put every content in exactly one of dev and test"
+                            + (f" (in both: {', '.join(sorted(both))})" if both else "")
+                            + (f" (unknown or missing: {', '.join(sorted(listed ^ content_ids))})"
+                               if listed != content_ids else ""), file=path, field="split")
+    return split
+
+
+def make_split(contents: list[tuple[str, str]], salt: str = SPLIT_SALT) -> dict[str, list[str]]:
+    """A dev/test split of (content id, kind) pairs, stratified by kind, fixed by the ids alone.
+
+    Within each kind the contents are ordered by sha256(salt, id) and alternate
+    test, dev, test, ... (an odd count gives test the extra one). The order does
+    not depend on the order of ``contents`` or on other kinds, so the split is
+    reproducible from the ids; the protocol file stores it, so it never moves.
+    """
+    split: dict[str, list[str]] = {"dev": [], "test": []}
+    kinds = dict.fromkeys(kind for _, kind in contents)
+    for kind in kinds:
+        ids = sorted((cid for cid, k in contents if k == kind),
+                     key=lambda cid: hashlib.sha256(f"{salt}/{cid}".encode()).hexdigest())
+        for i, cid in enumerate(ids):
+            split["test" if i % 2 == 0 else "dev"].append(cid)
+    return split
+
+
+def with_split(v1_path: str | Path, name: str, folder: Path = PROTOCOL_DIR) -> Path:
+    """Write ``<folder>/<name>.json``: the protocol at ``v1_path`` (same contents file, outputs, seeds)
+    as a version 2 file with the dev/test split of ``make_split``. Returns the new path."""
+    from core.files import write_bytes_atomic
+
+    old = load_protocol(v1_path)
+    meta = dict(old.meta)
+    meta.update(version=FORMAT_VERSION, name=name,
+                split=make_split([(cid, str(info.get("kind", "?"))) for cid, info in old.content_info.items()]))
+    if Path(folder).resolve() != old.path.parent.resolve():
+        raise ProtocolError("the v2 file must sit beside its contents file", field="folder")
+    order = [k for k in meta if k not in ("contents", "outputs")] + ["contents", "outputs"]
+    json_path = Path(folder) / f"{name}.json"
+    write_bytes_atomic(json_path, _format_json({k: meta[k] for k in order}).encode())
+    return json_path
 
 
 def check_detailizer(protocol: Protocol, detailizer) -> None:
@@ -379,12 +467,13 @@ def write_protocol(name: str, folder: Path, set_name: str, style_set, made: list
     outputs = []
     for (cid, _, _, _), rows in zip(made, assignments):
         outputs += [{"id": f"{cid}/{k:02d}", "content": cid, "styles": row} for k, row in enumerate(rows)]
+    split = make_split([(cid, kind) for cid, kind, _, _ in made])
     meta = {
         "format": FORMAT, "version": FORMAT_VERSION, "name": name, "style_set": set_name,
         "style_set_digest": set_digest(style_set), "parts": list(parts), "styles": styles,
         "seed": seed, "n_single": n_single, "n_mixed": n_mixed,
         "contents_file": f"{name}.npz", "contents_sha256": hashlib.sha256(data).hexdigest(),
-        "made_by": "python benchmarks/make_protocol.py",
+        "made_by": "python benchmarks/make_protocol.py", "split": split,
         "contents": [{"id": cid, "kind": kind, "shape": list(lab.shape), "occupied": int((lab >= 0).sum()),
                       **desc} for cid, kind, desc, lab in made],
         "outputs": outputs,

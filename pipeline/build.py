@@ -72,8 +72,10 @@ def named_input_files(asset: Asset, loaded: LoadedRecipe) -> dict[str, Path]:
 
 
 def detailizer_of(asset: Asset, loaded: LoadedRecipe, override: str | None) -> tuple[str, str | None]:
-    settings = asset.detailize
-    return override or settings.detailizer, settings.checkpoint and str(loaded.resolve(settings.checkpoint))
+    """(detailizer name, resolved path of the file it loads: its checkpoint or style set, or None = its default)."""
+    name = override or asset.detailize.detailizer
+    _, value = asset.detailize.data_file(name)
+    return name, value and str(loaded.resolve(value))
 
 
 def input_paths(loaded: LoadedRecipe, detailizer_override: str | None = None) -> set[Path]:
@@ -112,13 +114,14 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
             message = exc.message if exc.message.endswith(suffix) else exc.message + suffix
             raise RecipeError(message, file=loaded.path, field=f"{where}.source.{exc.field or ''}".rstrip("."),
                               hint=exc.hint) from None
-        _check_checkpoint_file(asset.detailize.checkpoint, loaded, f"{where}.detailize.checkpoint")
         name, checkpoint = detailizer_of(asset, loaded, detailizer_override)
+        field, value = asset.detailize.data_file(name)
+        _check_data_file(value, loaded, f"{where}.detailize.{field}")
         try:
             det = get_detailizer(name, checkpoint, asset.detailize.device)
         except DecollageError as exc:
             message = f"{exc.file}: {exc.message}" if exc.file else exc.message
-            about = "checkpoint" if checkpoint and exc.file == checkpoint else "detailizer"
+            about = field if (checkpoint and exc.file == checkpoint) or exc.field == field else "detailizer"
             raise RecipeError(message, file=loaded.path, field=f"{where}.detailize.{about}",
                               hint=exc.hint) from None
         for r, rule in enumerate(asset.regions):
@@ -133,10 +136,10 @@ def check_recipe(loaded: LoadedRecipe, detailizer_override: str | None = None) -
                     )
 
 
-def _check_checkpoint_file(value: str | None, loaded: LoadedRecipe, field: str) -> None:
-    """A ``checkpoint`` that names a file (it exists, or looks like a path) is checked for kind and size before
-    any detailizer reads it: a ``.npz`` (a style set for ``quilt``) as a style set, anything else as a
-    checkpoint. A bare name (``quilt``'s built-in set ``things``) is left to the detailizer to resolve."""
+def _check_data_file(value: str | None, loaded: LoadedRecipe, field: str) -> None:
+    """A ``checkpoint`` or ``style_set`` that names a file (it exists, or looks like a path) is checked for kind
+    and size before any detailizer reads it: a ``.npz`` as a style set, anything else as a checkpoint. A bare
+    name (``quilt``'s built-in set ``things``) is left to the detailizer to resolve."""
     if value is None:
         return
     path = loaded.resolve(value)

@@ -187,7 +187,8 @@ class JobRunner:
         self._set(job, JobState.DETAILIZING)
         check_recipe(job.recipe)  # unknown styles or parts for this detailizer: the build's own message
         settings = asset.detailize
-        checkpoint = settings.checkpoint and str(job.recipe.resolve(settings.checkpoint))
+        _, value = settings.data_file(settings.detailizer)
+        checkpoint = value and str(job.recipe.resolve(value))
         detailizer = get_detailizer(settings.detailizer, checkpoint, settings.device)
         t0 = time.perf_counter()
         fine = detailizer.detailize(job.grid, seed=settings.seed)

@@ -128,7 +128,8 @@ class PaintSession:
             grid, loaded, _ = self.grid(asset)
             own = grid.asset.detailize
             if own.detailizer == name:
-                checkpoint = own.checkpoint and str(loaded.resolve(own.checkpoint))
+                _, value = own.data_file(name)
+                checkpoint = value and str(loaded.resolve(value))
                 device = own.device
         with PIPELINE_LOCK:
             det = get_detailizer(name, checkpoint, device)

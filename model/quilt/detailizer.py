@@ -52,7 +52,7 @@ class QuiltDetailizer:
 
     Args:
         checkpoint: the style set: a built-in name, an imported set's name or a ``.npz`` file
-            (None: ``sets.DEFAULT_SET``). Named ``checkpoint`` because the pipeline passes a
+            (None: ``sets.DEFAULT_SET``); a recipe names it with ``detailize.style_set``. Named ``checkpoint`` because the pipeline passes a
             detailizer's data file under that name.
         device: ignored (CPU only); accepted for the pipeline's factory signature.
         style_set: an already loaded set (tests, benchmarks); overrides ``checkpoint``.

@@ -1,7 +1,7 @@
 """Which style set quilt copies from, and how a grid's style and part names map onto it.
 
 Role: resolve the set a recipe names (``detailize: {detailizer: quilt,
-checkpoint: <set>}``; none = ``DEFAULT_SET``) into a loaded ``StyleSet``, and
+style_set: <set>}``; none = ``DEFAULT_SET``) into a loaded ``StyleSet``, and
 map a ``LabeledGrid``'s style names (exemplar names) and part names (the set's
 vocabulary or a category's aliases, e.g. ``roof`` = ``top``) onto it. Every
 failure is a one-line ``DetailizeError`` that says what to do.
@@ -12,7 +12,7 @@ A set is named by
   folder the first time (``decollage styles build``; about 40 s for
   ``things``), then read from there;
 * the name of a set made by ``decollage styles import`` (``<styles dir>/<name>.npz``);
-* a ``.npz`` set file. (The build resolves a recipe's ``checkpoint`` against
+* a ``.npz`` set file. (The build resolves a recipe's ``style_set`` against
   the recipe's folder, so a bare name arrives as ``<recipe dir>/<name>``: when
   no such file exists its last component is taken as the set name.)
 """
@@ -43,7 +43,7 @@ def __getattr__(name: str):
 
 def _as_detailize_error(exc: DecollageError) -> DetailizeError:
     message = f"{exc.file}: {exc.message}" if exc.file else exc.message
-    return DetailizeError(f"style set for 'quilt': {message}", field="checkpoint", hint=exc.hint or _SET_HINT)
+    return DetailizeError(f"style set for 'quilt': {message}", field="style_set", hint=exc.hint or _SET_HINT)
 
 
 def resolve_style_set(spec: str | Path | None) -> StyleSet:
@@ -63,17 +63,18 @@ def resolve_style_set(spec: str | Path | None) -> StyleSet:
                 return load_set(set_path(path.name))
     except DecollageError as exc:
         raise _as_detailize_error(exc) from None
-    raise DetailizeError(f"unknown style set {name!r} for 'quilt'", field="checkpoint", hint=_SET_HINT)
+    shown = name if Path(name).suffix == ".npz" else Path(name).name  # a bare name arrives as <recipe dir>/<name>
+    raise DetailizeError(f"unknown style set {shown!r} for 'quilt'", field="style_set", hint=_SET_HINT)
 
 
 def check_set(style_set: StyleSet) -> None:
     """DetailizeError unless the set has exemplars on a grid quilt can cut into 16³ cells."""
     if not style_set.exemplars:
-        raise DetailizeError(f"style set '{style_set.name}' has no exemplars", field="checkpoint",
+        raise DetailizeError(f"style set '{style_set.name}' has no exemplars", field="style_set",
                              hint="import at least one mesh with 'decollage styles import', or use a built-in set")
     if style_set.resolution % 16 or style_set.resolution < 16:
         raise DetailizeError(f"style set '{style_set.name}' has resolution {style_set.resolution}, "
-                             "not a multiple of 16", field="checkpoint", hint="rebuild it at 256")
+                             "not a multiple of 16", field="style_set", hint="rebuild it at 256")
 
 
 def accepted_parts(style_set: StyleSet) -> tuple[str, ...]:

@@ -183,35 +183,57 @@ def test_eval_upsample_writes_json_and_markdown(tiny, tmp_path, tiny_cls):
                               "--doc", str(tmp_path / "docs" / "benchmarks.md")])
     assert res.exit_code == 0, res.output
     report = json.loads((out / "eval.json").read_text())
-    assert report["protocol"]["evaluated"] == 2 and report["protocol"]["outputs"] == 12
-    assert [r["id"] for r in report["outputs"]] == ["c0/00", "c1/02"]  # spread over the protocol
-    assert report["cls_variant"] == "quick" and report["cls"]["split"] == "views"
-    assert report["cls"]["test_images"] == [3, 2]  # 3 exemplars and 2 outputs, 1 held-out view each
+    p = load_protocol(tiny)
+    test_ids = [o.id for o in p.outputs_of("test")]
+    assert report["protocol"]["split"] == "test" and report["protocol"]["in_split"] == len(test_ids) < 12
+    assert report["protocol"]["evaluated"] == 2
+    assert [r["id"] for r in report["outputs"]] == [test_ids[0], test_ids[len(test_ids) // 2]]  # spread
+    assert all(r["split"] == "test" for r in report["outputs"])
     # the baseline keeps the coarse structure exactly: its ×16 max-pool is the content
     assert report["means"]["strict_iou"] == 1.0 and report["means"]["loose_iou"] == 1.0
-    for key in ("lp_iou", "lp_f", "cls"):
-        assert 0.0 <= report["means"][key] <= 1.0
-    assert all(0.0 <= r["cls_fake_acc"] <= 1.0 for r in report["outputs"])
-    assert report["machine"]["cpu_count"] >= 1 and report["timings"]["total_s"] > 0
-    assert report["style_set"]["matches_protocol"] is True
+    est = report["estimates"]
+    for key in ("lp_detail", "lp_detail_all", "lp_iou", "lp_f", "selfrec_iou", "selfrec_lp_iou", "matched_cls"):
+        assert 0.0 <= est[key]["mean"] <= 1.0, key
+    assert est["lp_detail"]["mean"] <= est["lp_detail_all"]["mean"] <= est["lp_iou"]["mean"]
+    # self-reconstruction: every exemplar as itself, then N_AUG held-out augmentations of each
+    from evaluation.selfrec import N_AUG
+    cases = report["selfrec"]
+    assert len(cases) == 3 * (1 + N_AUG) and sum(c["held_out"] for c in cases) == 3 * N_AUG
+    assert report["classifiers"]["matched_cls"]["real_shapes"] == 3 * N_AUG
+    assert report["classifiers"]["paper_cls"]["fake_shapes"] == 2
+    assert report["timings"]["peak_rss_gb"] > 0 and report["timings"]["total_s"] > 0
+    assert report["style_set"]["matches_protocol"] is True and report["vs_baseline"] is None
     md = (out / "eval.md").read_text()
-    assert "| detailizer | outputs | Strict-IOU | Loose-IOU | LP-IOU | LP-F | Cls |" in md
-    assert "| upsample | 2 | 1.000 | 1.000 |" in md and "Cls variant: **quick**" in md
+    assert "| **LP-detail** (own style; the primary figure) |" in md and "not the bar" in md
+    assert "| Strict-IOU | 1.000 [1.000, 1.000] |" in md and "Classifiers: **quick**" in md
     doc = (tmp_path / "docs" / "benchmarks.md").read_text()
-    assert "<!-- decollage:eval:upsample:begin -->" in doc and "| upsample | 2 | 1.000 | 1.000 |" in doc
+    assert "<!-- decollage:eval:upsample:begin -->" in doc and "LP-detail" in doc
 
 
-def test_eval_learned_checkpoint_without_cls(tiny, tmp_path):
+def test_eval_learned_checkpoint_paired_against_the_baseline(tiny, tmp_path):
+    base = tmp_path / "base"
+    res = RUNNER.invoke(app, ["eval", "--detailizer", "upsample", "--protocol", str(tiny), "--cls", "none",
+                              "--no-self-rec", "--threads", "1", "--device", "cpu", "--out", str(base)])
+    assert res.exit_code == 0, res.output
     ckpt = _tiny_checkpoint(tmp_path / "tiny.pt", tuple(n for n, _ in TINY_STYLES))
-    res = RUNNER.invoke(app, ["eval", "--checkpoint", str(ckpt), "--protocol", str(tiny), "--limit", "3",
-                              "--cls", "none", "--threads", "1", "--device", "cpu", "--out", str(tmp_path / "ev")])
+    res = RUNNER.invoke(app, ["eval", "--checkpoint", str(ckpt), "--protocol", str(tiny), "--cls", "none",
+                              "--no-self-rec", "--threads", "1", "--device", "cpu", "--out", str(tmp_path / "ev"),
+                              "--baseline", str(base / "eval.json")])
     assert res.exit_code == 0, res.output
     report = json.loads((tmp_path / "ev" / "eval.json").read_text())
-    assert report["detailizer"]["name"] == "decollage" and report["cls"] is None
-    assert report["cls_variant"] == "none" and report["means"]["cls"] is None
-    assert [r["id"] for r in report["outputs"]] == ["c0/00", "c1/00", "c2/00"]
-    assert [r["mixed"] for r in report["outputs"]] == [False, False, False]
-    assert "Cls variant: **none**" in (tmp_path / "ev" / "eval.md").read_text()
+    baseline = json.loads((base / "eval.json").read_text())
+    assert report["detailizer"]["name"] == "decollage" and report["classifiers"] == {}
+    assert report["selfrec"] == [] and report["cls_variant"] == "none"
+    vs = report["vs_baseline"]
+    assert vs["detailizer"] == "upsample"
+    for key in ("strict_iou", "lp_iou", "lp_detail"):
+        want = report["estimates"][key]["mean"] - baseline["estimates"][key]["mean"]
+        assert vs[key]["mean"] == pytest.approx(want, abs=1e-12), key
+    res = RUNNER.invoke(app, ["eval", "--compare", str(base / "eval.json"), "--compare", str(tmp_path / "ev" / "eval.json"),
+                              "--doc", str(tmp_path / "b.md")])
+    assert res.exit_code == 0, res.output
+    table = (tmp_path / "b.md").read_text()
+    assert "| figure | upsample | decollage (tiny.pt) |" in table and "<br>Δ " in table
 
 
 def _fails(args: list[str], *needles: str) -> None:
@@ -310,34 +332,39 @@ def test_ablation_presets_change_one_thing_each(tmp_path):
     assert decor.gamma_down == decor.gamma_up == 0.0
 
 
-def test_a_given_style_dictionary_gives_the_same_figures(tiny):
-    """evaluate(dictionary=...) (one dictionary for several detailizers) scores as if it built its own."""
-    from evaluation.evaluate import evaluate
-    from evaluation.patch_index import style_patch_dictionary
-    from core.detailizer import get_detailizer
-    from evaluation.protocol import resolve_protocol_set
-
-    protocol = load_protocol(tiny)
-    sset = resolve_protocol_set(protocol)
-    det = get_detailizer("upsample")
-    own = evaluate(protocol, det, sset, cls="none", limit=3)
-    given = style_patch_dictionary([ex.full(sset.resolution) > 0 for ex in sset.exemplars])
-    shared = evaluate(protocol, det, sset, cls="none", limit=3, dictionary=given)
-    assert [r["lp_iou"] for r in shared["outputs"]] == [r["lp_iou"] for r in own["outputs"]]
-    assert [r["lp_f"] for r in shared["outputs"]] == [r["lp_f"] for r in own["outputs"]]
-    assert "dictionary_s" in own["timings"] and "dictionary_s" not in shared["timings"]
-
-
 def test_markdown_names_the_ablation_a_checkpoint_was_trained_as():
     from evaluation.evaluate import markdown
 
     def report(training):
         return {"detailizer": {"name": "decollage", "checkpoint": "/x/row.pt", "training": training},
-                "means": {k: 0.5 for k in ("strict_iou", "loose_iou", "lp_iou", "lp_f", "cls")},
-                "timings": {"total_s": 1.0, "per_output_all_in_s": 1.0}, "machine": {},
-                "protocol": {"name": "p", "evaluated": 1, "outputs": 1}, "cls_variant": "none", "cls": None,
+                "estimates": {}, "timings": {"total_s": 1.0, "per_output_all_in_s": 1.0}, "machine": {},
+                "protocol": {"name": "p", "evaluated": 1, "outputs": 1}, "cls_variant": "none", "classifiers": {},
                 "groups": {}, "style_set": {"matches_protocol": True}}
 
-    assert "| decollage (row.pt), ablation `decor_gan` | 1 |" in markdown(report({"ablation": "decor_gan"}))
-    assert "| decollage (row.pt) | 1 |" in markdown(report({"ablation": "full"}))
-    assert "| decollage (row.pt) | 1 |" in markdown(report({}))
+    assert "### Evaluation: decollage (row.pt), ablation `decor_gan` on p" in markdown(report({"ablation": "decor_gan"}))
+    assert "### Evaluation: decollage (row.pt) on p" in markdown(report({"ablation": "full"}))
+    assert "### Evaluation: decollage (row.pt) on p" in markdown(report({}))
+
+
+def test_contact_sheet_has_one_column_per_detailizer_and_fixed_rows(tiny, tmp_path):
+    from PIL import Image
+
+    from evaluation.contact_sheet import CELL, HEADER_H, LABEL_W, N_MIXED_ROWS, N_SINGLE_ROWS, sheet_rows
+
+    p = load_protocol(tiny)
+    sset = __import__("evaluation.protocol", fromlist=["x"]).resolve_protocol_set(p)
+    outputs, cases = sheet_rows(p, sset)
+    assert [o.mixed for o in outputs] == [False] * N_SINGLE_ROWS + [True] * N_MIXED_ROWS
+    assert {o.content for o in outputs} <= set(p.split["test"])
+    assert len(cases) == 3 and all(c.held_out for c in cases)  # one per category (the tiny set has 3)
+    assert sheet_rows(p, sset)[0] == outputs  # fixed
+    res = RUNNER.invoke(app, ["eval", "--sheet", str(tmp_path / "docs" / "sheet.png"), "--protocol", str(tiny),
+                              "--sheet-detailizers", "upsample,upsample", "--threads", "1", "--device", "cpu"])
+    assert res.exit_code == 0, res.output
+    img = Image.open(tmp_path / "docs" / "sheet.png")
+    assert img.size == (LABEL_W + CELL * 3, HEADER_H + CELL * (len(outputs) + len(cases)))
+    pixels = np.asarray(img)
+    first_cell = pixels[HEADER_H:HEADER_H + CELL, LABEL_W:LABEL_W + CELL]
+    assert (first_cell < 255).mean() > 0.02  # a shape was drawn
+    truth_of_first_output = pixels[HEADER_H + 1:HEADER_H + CELL, LABEL_W + 2 * CELL:]  # below the row line
+    assert (truth_of_first_output == 255).all()  # protocol outputs have no true shape

@@ -201,9 +201,9 @@ def test_large_crops_run_blockwise_with_the_dense_result(ckpt_path, monkeypatch)
 
 @pytest.mark.e2e  # the shipped model at 256³
 def test_shipped_model_loads_keeps_the_coarse_shape_and_adds_detail():
-    """The committed weights: the default detailizer, the 'things' styles, and a kept coarse structure."""
+    """The committed weights: the 'things' styles, and a kept coarse structure."""
     assert DEFAULT_CHECKPOINT.is_file() and DEFAULT_CHECKPOINT.stat().st_size < 30 * 2**20
-    det = pipeline_detailize.get_detailizer(pipeline_detailize.DEFAULT_DETAILIZER, None, "cpu")
+    det = pipeline_detailize.get_detailizer("decollage", None, "cpu")
     assert isinstance(det, DecollageDetailizer) and det.learned
     assert {"cottage", "pagoda", "druse", "birthday_cake", "fern"} <= set(det.style_names)
     assert {"bottom", "top", "body", "roof"} <= set(det.part_names)

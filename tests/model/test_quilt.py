@@ -353,3 +353,29 @@ def test_a_thin_exemplar_and_a_one_cell_grid():
     _check_structure(det.detailize(_grid(occ, styles=("wire",)), seed=0).occupancy, occ)
     one = np.ones((1, 1, 1), bool)
     _check_structure(det.detailize(_grid(one, styles=("wire",)), seed=0).occupancy, one)
+
+
+def test_a_recipe_names_quilts_style_set_with_style_set(tmp_path, monkeypatch):
+    """``detailize.style_set`` picks the set (by name, resolved like the build resolves it); ``checkpoint`` with
+    quilt and ``style_set`` with the model are recipe errors that say which field to write."""
+    from pipeline.batch import build_recipe
+    from core.errors import RecipeError
+    from core.recipe_loader import load_recipe
+
+    monkeypatch.setenv("DECOLLAGE_STYLES_DIR", str(tmp_path / "styles"))
+    (tmp_path / "styles").mkdir()
+    _write_set(tmp_path / "styles", _set(("ribbed", _ribbed()), ("studded", _studded()), name="mine"))
+    asset = ("  - name: block\n    source: {kind: cad, parts: [{name: b, shape: box, size: [0.4, 0.4, 0.4]}]}\n"
+             "    regions: [{part: body, style: studded}]\n")
+    (tmp_path / "r.yaml").write_text("version: 1\ndefaults: {detailize: {detailizer: quilt, style_set: mine}}\n"
+                                     "assets:\n" + asset)
+    reports = build_recipe(load_recipe(tmp_path / "r.yaml"), tmp_path / "out")
+    assert [r.status for r in reports] == ["built"], [r.error for r in reports]
+    manifest = (tmp_path / "out" / "manifest.json").read_text()
+    assert '"style_set": "mine"' in manifest
+    for settings, field in (("{detailizer: quilt, checkpoint: mine}", "style_set"),
+                            ("{detailizer: decollage, style_set: mine}", "remove 'style_set'")):
+        (tmp_path / "bad.yaml").write_text(f"version: 1\ndefaults: {{detailize: {settings}}}\nassets:\n" + asset)
+        with pytest.raises(RecipeError) as err:
+            load_recipe(tmp_path / "bad.yaml")
+        assert field in err.value.one_line() and "detailize" in err.value.one_line()
