@@ -5,7 +5,6 @@ Run from the repository root::
     .venv/bin/python benchmarks/bench_quilt.py seams [--limit 16] [--detailizers quilt,upsample,decollage]
     .venv/bin/python benchmarks/bench_quilt.py speed [--repeats 5]
     .venv/bin/python benchmarks/bench_quilt.py long [--word ...]
-    .venv/bin/python benchmarks/bench_quilt.py previews
     .venv/bin/python benchmarks/bench_quilt.py import
 
 The detail figures (LP-detail, style specificity, self-reconstruction, shape-matched Cls, with
@@ -272,87 +271,6 @@ def speed(args) -> None:
 # --------------------------------------------------------------------------- self-reconstruction
 
 
-# --------------------------------------------------------------------------- previews
-
-TILE_PX = 320
-SHEET_IDS = "text_A/00,cad_arch/04,cad_mushroom/07,mesh_cottage_small/01,text_HI/05,aug_plant/02,text_Q/03,text_A/07"
-
-
-def _tiles(images: list, captions: list[str], tile: int = TILE_PX):
-    from PIL import Image, ImageDraw
-
-    sheet = Image.new("RGB", (len(images) * tile, tile + 22), (255, 255, 255))
-    draw = ImageDraw.Draw(sheet)
-    for i, (image, caption) in enumerate(zip(images, captions)):
-        sheet.paste(image.convert("RGB").resize((tile, tile), Image.LANCZOS), (i * tile, 0))
-        draw.text((i * tile + 6, tile + 5), caption, fill=(0, 0, 0))
-    return sheet
-
-
-def previews(args) -> None:
-    """upsample | quilt | decollage side by side: the showcase assets through the real pipeline, and a
-    sheet of protocol outputs (with the assigned exemplar) rendered by the pipeline's previewer."""
-    import tempfile
-
-    from PIL import Image
-
-    from core.recipe_loader import load_recipe
-    from pipeline.batch import build_recipe
-
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    names = ("upsample", "quilt", "decollage")
-    print("| asset | " + " | ".join(f"{n} strict / loose" for n in names) + " |")
-    print("|---|---|---|---|")
-    with tempfile.TemporaryDirectory() as tmp:
-        recipe = load_recipe(ROOT / "recipes" / "showcase.yaml")
-        built = {}
-        for n in names:
-            build_recipe(recipe, Path(tmp) / n, detailizer_override=n)
-            built[n] = {a["name"]: a for a in json.loads((Path(tmp) / n / "manifest.json").read_text())["assets"]}
-        for asset in built["quilt"]:
-            images = [Image.open(Path(tmp) / n / built[n][asset]["outputs"]["preview"]["path"]) for n in names]
-            st = [built[n][asset]["structure"] for n in names]
-            captions = [f"{n}{' (non-learned)' if n != 'decollage' else ' (learned)'}  strict IOU "
-                        f"{x['strict_iou']:.3f}" for n, x in zip(names, st)]
-            _tiles(images, captions).save(out / f"{asset}.png", optimize=True)
-            print(f"| {asset} | " + " | ".join(f"{x['strict_iou']:.3f} / {x['loose_iou']:.3f}" for x in st) + " |")
-    _protocol_sheet(out / "protocol_sheet.png", args.ids.split(","))
-
-
-def _protocol_sheet(path: Path, ids: list[str]) -> None:
-    from PIL import Image
-
-    from core.grid import FineGrid
-    from evaluation.protocol import load_protocol
-    from geometry.preview import render_preview
-    from pipeline.mesh import MeshSettings, mesh_fine_grid
-
-    protocol = load_protocol()
-    style_set = _protocol_set()
-    dets = {n: _detailizer(n, style_set) for n in ("upsample", "quilt", "decollage")}
-    rows = []
-    for oid in ids:
-        out = next(o for o in protocol.outputs if o.id == oid)
-        grid = protocol.grid(out)
-        images = [render_preview(mesh_fine_grid(d.detailize(grid, seed=0), MeshSettings(max_triangles=300_000)))
-                  for d in dets.values()]
-        ex = style_set.get(out.styles["bottom"]).full(style_set.resolution) > 0
-        images.append(render_preview(mesh_fine_grid(FineGrid(
-            occupancy=ex.astype(np.float32), style=np.zeros(ex.shape, np.int16), style_names=("exemplar",),
-            voxel_size_m=0.01), MeshSettings(max_triangles=300_000))))
-        styles = "/".join(dict.fromkeys(out.styles.values()))
-        rows.append(_tiles(images, [f"{oid} upsample", f"quilt ({styles})", "decollage", f"exemplar {out.styles['bottom']}"],
-                           tile=240))
-    sheet = Image.new("RGB", (rows[0].width, sum(r.height for r in rows)), (255, 255, 255))
-    y = 0
-    for r in rows:
-        sheet.paste(r, (0, y))
-        y += r.height
-    sheet.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)  # a third of the bytes
-    print(f"wrote {path}")
-
-
 # --------------------------------------------------------------------------- a user's own style
 
 IMPORT_RECIPE = """version: 1
@@ -441,15 +359,11 @@ def main(argv: list[str]) -> None:
     sp.add_argument("--repeats", type=int, default=5)
     sp.add_argument("--ids", default="text_A/00,cad_mushroom/08,mesh_cottage/00")
     sp.add_argument("--detailizers", default="quilt,upsample,decollage")
-    pv = sub.add_parser("previews")
-    pv.add_argument("--out", default=str(ROOT / "docs" / "previews" / "quilt"))
-    pv.add_argument("--ids", default=SHEET_IDS)
     im = sub.add_parser("import")
     im.add_argument("--keep", default="", help="copy the built previews here")
     args = ap.parse_args(argv)
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
-    {"seams": seams, "long": long_word, "import": import_to_asset, "speed": speed,
-     "previews": previews}[args.cmd](args)
+    {"seams": seams, "long": long_word, "import": import_to_asset, "speed": speed}[args.cmd](args)
 
 
 if __name__ == "__main__":
