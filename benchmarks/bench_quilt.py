@@ -268,9 +268,6 @@ def speed(args) -> None:
         print(json.dumps(_in_child(_speed_child, name, args.repeats, ids)), flush=True)
 
 
-# --------------------------------------------------------------------------- self-reconstruction
-
-
 # --------------------------------------------------------------------------- a user's own style
 
 IMPORT_RECIPE = """version: 1
