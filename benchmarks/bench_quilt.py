@@ -2,27 +2,19 @@
 
 Run from the repository root::
 
-    .venv/bin/python benchmarks/bench_quilt.py quality [--limit 16] [--detailizers quilt,upsample,decollage]
+    .venv/bin/python benchmarks/bench_quilt.py seams [--limit 16] [--detailizers quilt,upsample,decollage]
     .venv/bin/python benchmarks/bench_quilt.py speed [--repeats 5]
     .venv/bin/python benchmarks/bench_quilt.py long [--word ...]
     .venv/bin/python benchmarks/bench_quilt.py import
 
-``quality`` runs outputs of the evaluation protocol (``evaluation/protocols/things_v1``,
-``--limit`` spread evenly, or ``--split test``) through each detailizer and reports per output and
-on average:
+The detail figures (LP-detail, style specificity, self-reconstruction, shape-matched Cls, with
+intervals and paired differences) are ``decollage eval``'s (``scripts/eval_detail.sh``); this
+benchmark adds what is particular to quilt and its cost.
+
+``seams`` runs outputs of the evaluation protocol (``--limit`` spread evenly, or ``--split test``)
+through each detailizer and reports per output and on average:
 
 * Strict/Loose-IOU (``core.structure.strict_loose_iou``, the evaluation's definition);
-* style specificity: LP-detail minus the same measure against one exemplar of
-  another category (``OTHER_CATEGORY``);
-* **LP-detail** (self-contained version of the measuring issue's metric): 1000
-  surface patches (12³, seeded by the output's index, ``evaluation.patches``'s
-  sampler) that are *not extrusions* (not constant along any axis) and have
-  IOU > 0.95 with some patch of the exemplar assigned to the patch's region
-  (the style of the fine voxel at the patch position), as a fraction of all
-  sampled patches; the exemplar dictionaries are built with
-  ``evaluation.patch_index.style_patch_dictionary`` from the exemplar as stored (no
-  rotations or mirrors) and cached under ``--cache``; also the extrusion
-  fraction and the plain own-style LP-IOU;
 * the seam measure (quilt only): the fraction of 6-neighbouring pairs of
   surface cells (occupied cells with an empty 26-neighbour; interior cells are
   solid and have no source) whose sources continue each other (adjacent in
@@ -43,7 +35,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import pickle
 import platform
 import subprocess
 import sys
@@ -55,56 +46,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-N_PATCHES = 1000
-
 
 # --------------------------------------------------------------------------- measures
-
-
-def extrusion_mask(rows: np.ndarray) -> np.ndarray:
-    """(m,) bool: 12³ patches (m, 1728) that are constant along at least one axis."""
-    p = rows.reshape(-1, 12, 12, 12)
-    out = np.zeros(len(p), dtype=bool)
-    for axis in (1, 2, 3):
-        first = np.take(p, [0], axis=axis)
-        out |= (p == first).all(axis=(1, 2, 3))
-    return out
-
-
-def style_dictionary(style_set, name: str, cache: Path):
-    """The LP dictionary of one exemplar (cached as a pickle keyed by the set's digest)."""
-    from evaluation.patch_index import style_patch_dictionary
-
-    path = cache / f"lpdict-{style_set.inputs_hash[:12]}-{name}.pkl"
-    if path.is_file():
-        return pickle.loads(path.read_bytes())
-    d = style_patch_dictionary([style_set.get(name).full(style_set.resolution) > 0])
-    cache.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(pickle.dumps(d))
-    return d
-
-
-def lp_detail(binary: np.ndarray, styles: np.ndarray, style_names, dicts: dict, seed: int) -> dict:
-    """LP-detail, own-style LP-IOU and extrusion fraction of a binarised output (see module docstring)."""
-    from evaluation.patch_index import iou_similar
-    from evaluation.patches import extract_patches, sample_surface_patches
-
-    pos = sample_surface_patches(binary, n=N_PATCHES, seed=seed)
-    if len(pos) == 0:
-        return {"lp_detail": 0.0, "lp_own": 0.0, "extrusion": 0.0}
-    rows = extract_patches(binary, pos)
-    ext = extrusion_mask(rows.numpy())
-    style_at = styles[tuple(pos.T)]
-    found = np.zeros(len(pos), dtype=bool)
-    for s in np.unique(style_at):
-        sel = np.flatnonzero(style_at == s)
-        found[sel] = iou_similar(rows[sel], dicts[style_names[s]])
-    return {"lp_detail": float((found & ~ext).mean()), "lp_own": float(found.mean()),
-            "extrusion": float(ext.mean())}
-
-
-#: For style specificity: each category's patches are also matched against one exemplar of another category.
-OTHER_CATEGORY = {"building": "bush", "plant": "birthday_cake", "cake": "druse", "crystal": "cottage"}
 
 
 def structure(binary: np.ndarray, coarse: np.ndarray) -> dict:
@@ -134,7 +77,7 @@ def _detailizer(name: str, style_set):
     return get_detailizer(name, None, "cpu")
 
 
-def quality(args) -> None:
+def seams(args) -> None:
     from core.structure import strict_loose_iou
     from evaluation.evaluate import pick_outputs
     from evaluation.protocol import load_protocol, resolve_protocol_set
@@ -145,19 +88,14 @@ def quality(args) -> None:
     if args.ids:
         outputs = [o for o in outputs if o.id in args.ids.split(",")]
     elif args.split:
-        split = json.loads((ROOT / args.split).read_text()) if args.split.endswith(".json") else None
-        outputs = [o for o in outputs if split is None or o.content in split]
+        outputs = list(protocol.outputs_of(args.split))
     outputs = pick_outputs(outputs, args.limit)
-    cache = Path(args.cache)
     names = args.detailizers.split(",")
     dets = {n: _detailizer(n, style_set) for n in names}
     rows = []
     print(f"{len(outputs)} outputs; detailizers {names}; load {os.getloadavg()[0]:.2f}", flush=True)
     for out in outputs:
         grid = protocol.grid(out)
-        dicts = {s: style_dictionary(style_set, s, cache) for s in grid.style_names}
-        others = {s: style_dictionary(style_set, OTHER_CATEGORY[style_set.get(s).category], cache)
-                  for s in grid.style_names}
         for n, det in dets.items():
             t = time.perf_counter()
             fine = det.detailize(grid, seed=0)
@@ -165,8 +103,6 @@ def quality(args) -> None:
             binary = np.asarray(fine.occupancy) > 0.4
             strict, loose = strict_loose_iou(binary, grid.occupancy)
             row = {"id": out.id, "detailizer": n, "seconds": round(seconds, 3), "strict": strict, "loose": loose,
-                   **lp_detail(binary, fine.style, grid.style_names, dicts, out.index),
-                   "lp_other": lp_detail(binary, fine.style, grid.style_names, others, out.index)["lp_detail"],
                    **structure(binary, grid.occupancy)}
             if n == "quilt":
                 content, lib, res = det.source_field(grid, 0)
@@ -174,38 +110,16 @@ def quality(args) -> None:
                 row.update({k: v for k, v in fine.extras.items() if k in ("fragments_removed", "bridges")})
             rows.append(row)
             print(json.dumps(row), flush=True)
-    print("\n| detailizer | n | s/output | Strict | Loose | LP-detail | specificity | LP-own | extrusions | "
-          "continuation | floating | cavities |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("\n| detailizer | n | s/output | Strict | Loose | continuation | floating | cavities |")
+    print("|---|---|---|---|---|---|---|---|")
     for n in names:
         rs = [r for r in rows if r["detailizer"] == n]
         m = {k: float(np.mean([r[k] for r in rs])) for k in rs[0] if isinstance(rs[0][k], (int, float))}
         cont = f"{m['continuation']:.3f}" if "continuation" in m else "-"
-        print(f"| {n} | {len(rs)} | {m['seconds']:.2f} | {m['strict']:.3f} | {m['loose']:.3f} | {m['lp_detail']:.3f} | "
-              f"{m['lp_detail'] - m['lp_other']:+.3f} | {m['lp_own']:.3f} | {m['extrusion']:.3f} | {cont} | {sum(r['floating'] for r in rs)} | "
-              f"{sum(r['cavities'] for r in rs)} |")
-    if "quilt" in names:
-        print("\npaired differences of LP-detail per output, quilt minus the other (mean, 95 % bootstrap interval "
-              "over outputs, 2000 resamples):")
-        mine = {r["id"]: r for r in rows if r["detailizer"] == "quilt"}
-        for n in names:
-            if n == "quilt":
-                continue
-            diff = np.array([mine[r["id"]]["lp_detail"] - r["lp_detail"] for r in rows if r["detailizer"] == n])
-            lo, hi = bootstrap_interval(diff)
-            print(f"  quilt − {n}: {diff.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]")
-        spec = np.array([r["lp_detail"] - r["lp_other"] for r in mine.values()])
-        lo, hi = bootstrap_interval(spec)
-        print(f"  quilt style specificity: {spec.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]")
+        print(f"| {n} | {len(rs)} | {m['seconds']:.2f} | {m['strict']:.3f} | {m['loose']:.3f} | {cont} | "
+              f"{sum(r['floating'] for r in rs)} | {sum(r['cavities'] for r in rs)} |")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
-
-
-def bootstrap_interval(values: np.ndarray, n: int = 2000, seed: int = 0) -> tuple[float, float]:
-    """95 % percentile bootstrap interval of the mean."""
-    rng = np.random.default_rng(seed)
-    means = values[rng.integers(0, len(values), size=(n, len(values)))].mean(axis=1)
-    return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
 
 
 # --------------------------------------------------------------------------- long word
@@ -354,128 +268,6 @@ def speed(args) -> None:
         print(json.dumps(_in_child(_speed_child, name, args.repeats, ids)), flush=True)
 
 
-# --------------------------------------------------------------------------- self-reconstruction
-
-
-def exemplar_grid(style_set, name: str):
-    """An exemplar max-pooled to its 16³ coarse grid, each cell with its majority part, in its own style."""
-    from core.grid import EMPTY, LabeledGrid
-
-    full = style_set.get(name).full(style_set.resolution)
-    n = style_set.resolution // 16
-    parts = len(style_set.vocabulary.parts)
-    counts = np.stack([(full == i + 1).reshape(n, 16, n, 16, n, 16).sum(axis=(1, 3, 5)) for i in range(parts)])
-    occ = counts.sum(axis=0) > 0
-    part = np.where(occ, counts.argmax(axis=0), EMPTY).astype(np.int16)
-    return LabeledGrid(occupancy=occ, part=part, style=np.where(occ, 0, EMPTY).astype(np.int16),
-                       part_names=style_set.vocabulary.parts, style_names=(name,), voxel_size_m=0.1), full > 0
-
-
-def selfrec(args) -> None:
-    """Each exemplar max-pooled and detailized in its own style: IOU with the exemplar at 256³ and LP."""
-    style_set = _protocol_set()
-    names = args.names.split(",") if args.names else [e.name for e in style_set.exemplars]
-    dets = {n: _detailizer(n, style_set) for n in args.detailizers.split(",")}
-    rows = []
-    for name in names:
-        grid, truth = exemplar_grid(style_set, name)
-        dicts = {name: style_dictionary(style_set, name, Path(args.cache))}
-        for dn, det in dets.items():
-            fine = det.detailize(grid, seed=0)
-            binary = np.asarray(fine.occupancy) > 0.4
-            iou = float((binary & truth).sum() / (binary | truth).sum())
-            row = {"exemplar": name, "detailizer": dn, "iou_256": round(iou, 3),
-                   **lp_detail(binary, fine.style, grid.style_names, dicts, 0)}
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-    print("\n| detailizer | exemplars | IOU at 256³ | LP-detail | LP-own |\n|---|---|---|---|---|")
-    for dn in dets:
-        rs = [r for r in rows if r["detailizer"] == dn]
-        print(f"| {dn} | {len(rs)} | {np.mean([r['iou_256'] for r in rs]):.3f} | "
-              f"{np.mean([r['lp_detail'] for r in rs]):.3f} | {np.mean([r['lp_own'] for r in rs]):.3f} |")
-
-
-# --------------------------------------------------------------------------- previews
-
-TILE_PX = 320
-SHEET_IDS = "text_A/00,cad_arch/04,cad_mushroom/07,mesh_cottage_small/01,text_HI/05,aug_plant/02,text_Q/03,text_A/07"
-
-
-def _tiles(images: list, captions: list[str], tile: int = TILE_PX):
-    from PIL import Image, ImageDraw
-
-    sheet = Image.new("RGB", (len(images) * tile, tile + 22), (255, 255, 255))
-    draw = ImageDraw.Draw(sheet)
-    for i, (image, caption) in enumerate(zip(images, captions)):
-        sheet.paste(image.convert("RGB").resize((tile, tile), Image.LANCZOS), (i * tile, 0))
-        draw.text((i * tile + 6, tile + 5), caption, fill=(0, 0, 0))
-    return sheet
-
-
-def previews(args) -> None:
-    """upsample | quilt | decollage side by side: the showcase assets through the real pipeline, and a
-    sheet of protocol outputs (with the assigned exemplar) rendered by the pipeline's previewer."""
-    import tempfile
-
-    from PIL import Image
-
-    from core.recipe_loader import load_recipe
-    from pipeline.batch import build_recipe
-
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    names = ("upsample", "quilt", "decollage")
-    print("| asset | " + " | ".join(f"{n} strict / loose" for n in names) + " |")
-    print("|---|---|---|---|")
-    with tempfile.TemporaryDirectory() as tmp:
-        recipe = load_recipe(ROOT / "recipes" / "showcase.yaml")
-        built = {}
-        for n in names:
-            build_recipe(recipe, Path(tmp) / n, detailizer_override=n)
-            built[n] = {a["name"]: a for a in json.loads((Path(tmp) / n / "manifest.json").read_text())["assets"]}
-        for asset in built["quilt"]:
-            images = [Image.open(Path(tmp) / n / built[n][asset]["outputs"]["preview"]["path"]) for n in names]
-            st = [built[n][asset]["structure"] for n in names]
-            captions = [f"{n}{' (non-learned)' if n != 'decollage' else ' (learned)'}  strict IOU "
-                        f"{x['strict_iou']:.3f}" for n, x in zip(names, st)]
-            _tiles(images, captions).save(out / f"{asset}.png", optimize=True)
-            print(f"| {asset} | " + " | ".join(f"{x['strict_iou']:.3f} / {x['loose_iou']:.3f}" for x in st) + " |")
-    _protocol_sheet(out / "protocol_sheet.png", args.ids.split(","))
-
-
-def _protocol_sheet(path: Path, ids: list[str]) -> None:
-    from PIL import Image
-
-    from core.grid import FineGrid
-    from evaluation.protocol import load_protocol
-    from geometry.preview import render_preview
-    from pipeline.mesh import MeshSettings, mesh_fine_grid
-
-    protocol = load_protocol()
-    style_set = _protocol_set()
-    dets = {n: _detailizer(n, style_set) for n in ("upsample", "quilt", "decollage")}
-    rows = []
-    for oid in ids:
-        out = next(o for o in protocol.outputs if o.id == oid)
-        grid = protocol.grid(out)
-        images = [render_preview(mesh_fine_grid(d.detailize(grid, seed=0), MeshSettings(max_triangles=300_000)))
-                  for d in dets.values()]
-        ex = style_set.get(out.styles["bottom"]).full(style_set.resolution) > 0
-        images.append(render_preview(mesh_fine_grid(FineGrid(
-            occupancy=ex.astype(np.float32), style=np.zeros(ex.shape, np.int16), style_names=("exemplar",),
-            voxel_size_m=0.01), MeshSettings(max_triangles=300_000))))
-        styles = "/".join(dict.fromkeys(out.styles.values()))
-        rows.append(_tiles(images, [f"{oid} upsample", f"quilt ({styles})", "decollage", f"exemplar {out.styles['bottom']}"],
-                           tile=240))
-    sheet = Image.new("RGB", (rows[0].width, sum(r.height for r in rows)), (255, 255, 255))
-    y = 0
-    for r in rows:
-        sheet.paste(r, (0, y))
-        y += r.height
-    sheet.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)  # a third of the bytes
-    print(f"wrote {path}")
-
-
 # --------------------------------------------------------------------------- a user's own style
 
 IMPORT_RECIPE = """version: 1
@@ -550,12 +342,11 @@ def import_to_asset(args) -> None:
 def main(argv: list[str]) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
-    q = sub.add_parser("quality")
+    q = sub.add_parser("seams")
     q.add_argument("--limit", type=int, default=16)
     q.add_argument("--ids", default="")
-    q.add_argument("--split", default="")
+    q.add_argument("--split", default="", help="a split of the protocol (dev or test)")
     q.add_argument("--detailizers", default="quilt,upsample")
-    q.add_argument("--cache", default=os.environ.get("QUILT_BENCH_CACHE", "/tmp/quilt-bench-cache"))
     q.add_argument("--json", default="")
     lw = sub.add_parser("long")
     lw.add_argument("--text", default="QUILTEDLETTERSINAROW")
@@ -565,19 +356,11 @@ def main(argv: list[str]) -> None:
     sp.add_argument("--repeats", type=int, default=5)
     sp.add_argument("--ids", default="text_A/00,cad_mushroom/08,mesh_cottage/00")
     sp.add_argument("--detailizers", default="quilt,upsample,decollage")
-    sr = sub.add_parser("selfrec")
-    sr.add_argument("--names", default="")
-    sr.add_argument("--detailizers", default="quilt,upsample")
-    sr.add_argument("--cache", default=os.environ.get("QUILT_BENCH_CACHE", "/tmp/quilt-bench-cache"))
-    pv = sub.add_parser("previews")
-    pv.add_argument("--out", default=str(ROOT / "docs" / "previews" / "quilt"))
-    pv.add_argument("--ids", default=SHEET_IDS)
     im = sub.add_parser("import")
     im.add_argument("--keep", default="", help="copy the built previews here")
     args = ap.parse_args(argv)
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
-    {"quality": quality, "long": long_word, "import": import_to_asset, "speed": speed,
-     "previews": previews, "selfrec": selfrec}[args.cmd](args)
+    {"seams": seams, "long": long_word, "import": import_to_asset, "speed": speed}[args.cmd](args)
 
 
 if __name__ == "__main__":

@@ -76,7 +76,8 @@ def main(argv: list[str]) -> None:
                 print(f"| {asset.name} | {name} | {label} | {len(result.mesh.faces)} | "
                       f"{result.structure['strict_iou']:.4f} | {strict:.4f} |")
             path = args.out / f"{asset.name}_{name}.png"
-            Image.fromarray(np.concatenate(tiles, axis=1)).save(path, optimize=True)
+            # 256 colours: the pictures are shaded single-colour surfaces, and the docs stay small
+            Image.fromarray(np.concatenate(tiles, axis=1)).quantize(256).save(path, optimize=True)
             print(f"wrote {path} (left to right: {', '.join(s[0] for s in SETTINGS)})")
 
 

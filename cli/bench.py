@@ -70,7 +70,7 @@ def _bench(checkpoint, out, recipes, repeats, train_iterations, assets, threads,
     machine = machine_info("cpu")
     rows = []
     devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
-    for which, device in [(learned, d) for d in devices] + [("upsample", "cpu")]:
+    for which, device in [("quilt", "cpu")] + [(learned, d) for d in devices] + [("upsample", "cpu")]:
         say(f"detailize 16³ → 256³: {which} on {device} …")
         try:
             rows.append(measure_detailizer(which, device, repeats=max(repeats, 3), threads=threads))
@@ -99,7 +99,8 @@ def bench_markdown(machine: dict, rows: list[dict], asset_rows: list[dict], trai
     from datetime import datetime, timezone
 
     label = {"random-lean": "decollage, lean layout, random weights (timing only; no trained model yet)",
-             "shipped": "decollage (shipped model)", "upsample": "upsample (baseline)"}
+             "shipped": "decollage (shipped model)", "upsample": "upsample (baseline)",
+             "quilt": "quilt (default; non-learned, example-based)"}
     lines = [
         "## Speed and memory (`decollage bench`)",
         "",
@@ -113,13 +114,14 @@ def bench_markdown(machine: dict, rows: list[dict], asset_rows: list[dict], trai
         "",
         "House-like grid (12×9×12 body under a stepped roof), fresh process per row; median after a warm-up.",
         "",
-        "| detailizer | device | threads | load s | median s | min s | peak RSS GB | peak GPU GB | parameters |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| detailizer | device | threads | load s | median s | min s | median CPU s | peak RSS GB | peak GPU GB | "
+        "parameters |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         name = label.get(r["detailizer"], f"decollage ({Path(r['detailizer']).name})")
         lines.append(f"| {name} | {r['device']} | {r['threads']} | {r['load_s']:.2f} | {r['median_s']:.3f} | "
-                     f"{r['min_s']:.3f} | {r['peak_rss_gb']:.2f} | "
+                     f"{r['min_s']:.3f} | {r['median_cpu_s']:.3f} | {r['peak_rss_gb']:.2f} | "
                      f"{'–' if r['peak_gpu_gb'] is None else format(r['peak_gpu_gb'], '.2f')} | "
                      f"{r['params'] or '–'} |")
     if asset_rows:

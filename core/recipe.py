@@ -141,7 +141,7 @@ class GlbCompression(str, Enum):
 
     none: plain float32 attributes (every glTF reader loads them);
     meshopt: quantized attributes (KHR_mesh_quantization) compressed with EXT_meshopt_compression
-    (pipeline/glb_meshopt.py), about a tenth of the size; readers need meshopt's decoder.
+    (pipeline/glb_meshopt.py), about a fifth of the size; readers need meshopt's decoder.
     """
 
     NONE = "none"
@@ -174,7 +174,7 @@ class GridSettings(_Strict):
     voxel_size_m: Optional[VoxelMetres] = Field(None, description="Only with fit: voxel_size.")
     max_cells: int = Field(
         1024, ge=4, le=1024,
-        description="Largest allowed coarse grid side. Grids longer than 128 cells along x (long text) are "
+        description="Largest allowed coarse grid side. Grids longer than 64 cells along x (long text) are "
                     "detailized and meshed block by block, so their memory does not grow with their length; "
                     "the per-asset memory estimate (core/budget.py) guards the other sides.")
     min_coverage: float = Field(0.5, gt=0, le=1, description="Fraction of a cell a shape must fill to occupy it.")
@@ -277,7 +277,7 @@ class ExportSettings(_Strict):
     pivot: Pivot = Pivot.BOTTOM_CENTER
     vertex_colors: bool = True
     compression: GlbCompression = Field(GlbCompression.NONE, description="GLB geometry: 'none' (plain, every "
-                                        "reader) or 'meshopt' (quantized + EXT_meshopt_compression, ~10× smaller; "
+                                        "reader) or 'meshopt' (quantized + EXT_meshopt_compression, ~5× smaller; "
                                         "readers need meshopt's decoder, as three.js, Unity glTFast, Godot 4 have).")
     glb_material: bool = Field(False, description="Give GLBs a white matte material, for viewers whose default "
                                "glTF material (fully metallic) shows vertex colours too dark.")

@@ -61,7 +61,8 @@ def reference_workload_seconds(repeats: int = 5) -> dict:
         if run:  # the first run warms caches up
             times.append(time.perf_counter() - start)
         faces = len(tris)
-    return {"median_s": statistics.median(times), "min_s": min(times), "faces": faces, "repeats": repeats,
+    return {"median_s": statistics.median(times), "min_s": min(times),
+                "median_cpu_s": statistics.median(cpu_times), "faces": faces, "repeats": repeats,
             "load_average": load}
 
 
@@ -111,12 +112,12 @@ def _measure(which: str, device: str, repeats: int, threads: int | None, queue) 
 
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            checkpoint = None if which in ("upsample", "shipped") else which
+            non_learned = which in ("upsample", "quilt")  # CPU only; quilt copies from its default set
+            checkpoint = None if non_learned or which == "shipped" else which
             if which == "random-lean":
                 checkpoint = _random_lean_checkpoint(Path(tmp))
             t0 = time.perf_counter()
-            det = get_detailizer("upsample" if which == "upsample" else "decollage", checkpoint,
-                                 "cpu" if which == "upsample" else device)
+            det = get_detailizer(which if non_learned else "decollage", checkpoint, "cpu" if non_learned else device)
             load_s = time.perf_counter() - t0
             styles = tuple(det.style_names[:2]) if getattr(det, "style_names", None) else ("a", "b")
             parts = tuple(det.part_names[:2]) if getattr(det, "part_names", None) else ("bottom", "top")
@@ -126,16 +127,18 @@ def _measure(which: str, device: str, repeats: int, threads: int | None, queue) 
             if on_cuda:
                 torch.cuda.synchronize()
                 torch.cuda.reset_peak_memory_stats()
-            times = []
+            times, cpu_times = [], []  # wall, and this process's CPU time (what other jobs on the cores do not inflate)
             for seed in range(repeats):
-                t = time.perf_counter()
+                t, c = time.perf_counter(), time.process_time()
                 det.detailize(grid, seed=seed)
                 if on_cuda:
                     torch.cuda.synchronize()
                 times.append(time.perf_counter() - t)
+                cpu_times.append(time.process_time() - c)
             info = det.describe()
             queue.put({
                 "detailizer": which, "load_s": load_s, "median_s": statistics.median(times), "min_s": min(times),
+                "median_cpu_s": statistics.median(cpu_times),
                 "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2,
                 "peak_gpu_gb": torch.cuda.max_memory_allocated() / 1024**3 if on_cuda else None,
                 "device": str(getattr(det, "device", "cpu")), "threads": torch.get_num_threads(),
@@ -148,8 +151,8 @@ def measure_detailizer(which: str, device: str = "cpu", repeats: int = 5, thread
     """Time one 16³ → 256³ detailization in a fresh process.
 
     Args:
-        which: "upsample", "shipped" (the default checkpoint), "random-lean", or a checkpoint path.
-        device: "cpu" or "cuda" (the upsample baseline always runs on the CPU).
+        which: "upsample", "quilt", "shipped" (the default checkpoint), "random-lean", or a checkpoint path.
+        device: "cpu" or "cuda" (the non-learned detailizers always run on the CPU).
         threads: CPU threads in the child (default: every core).
     Raises:
         RuntimeError: the child failed (its message).

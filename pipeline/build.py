@@ -30,7 +30,6 @@ from core.errors import DecollageError, RecipeError, UsageError
 from core.files import InputKind, check_input_file, sha256_file
 from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset
 from core.recipe_loader import LoadedRecipe
-from core.structure import strict_loose_iou
 from geometry.voxelize import mesh_grid_shape, voxelize
 from pipeline.cache import closure_records, portable_path
 from pipeline.engines import make_collision, make_lods

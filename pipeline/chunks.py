@@ -1,7 +1,7 @@
 """Detailize and mesh an asset block by block along x, so that long assets (a 20-letter word) keep to
 bounded memory and take time in proportion to their length.
 
-A coarse grid at most ``WHOLE_MAX_CELLS`` columns long (every 16³ shape, a 6-letter word) is one
+A coarse grid at most ``WHOLE_MAX_CELLS`` columns long (every 16³ shape, a 3-letter word) is one
 block: the detailizer sees it whole. A longer one is cut into blocks of ``CHUNK_CELLS`` columns.
 Each block is detailized on its columns plus ``HALO_CELLS`` columns of context on either side (the
 detailizer sees its neighbours' shapes there; only the block's own columns are kept), then meshed
@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     import trimesh
 
 #: Grids of at most this many coarse columns along x are detailized and meshed as one block.
-WHOLE_MAX_CELLS = 128
+WHOLE_MAX_CELLS = 64
 #: Own coarse columns of a block when a grid is longer.
 CHUNK_CELLS = 32
 #: Coarse columns of context the detailizer sees on either side of a block (cut away after).

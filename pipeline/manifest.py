@@ -9,6 +9,11 @@ path relative to the recipe's folder or ``<decollage>/...`` for files shipped
 with this project, ``sha256`` null for a file a reader looked for and did not
 find (``pipeline/cache.py``). Version 1 keyed ``files`` by recipe field and
 listed only the files the recipe names.
+No path in a manifest depends on where the checkout, the output folder or the user's cache lies: the
+recipe is named relative to the output folder (or ``<decollage>/...``), a detailizer's checkpoint or
+style set file like the input closure's paths (``<decollage>/...``, ``<styles>/...``, or relative to
+the recipe's folder), with its sha256 in ``inputs.files``. An asset detailized block by block
+(``pipeline/chunks.py``) says into how many blocks (``chunks``).
 Timings are the only non-deterministic values; they live under ``timings_s``,
 and an asset taken from the cache keeps the entry (timings included) recorded
 when it was built, so rebuilding unchanged inputs rewrites an identical file.

@@ -274,7 +274,10 @@ def crop_padded(occupancy: np.ndarray, iso: float,
         pad.append((0 if open_lo else 1, 0 if open_hi else 1))
     crop = occupancy[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
     start = np.asarray(lo, dtype=np.float64) - np.asarray([p[0] for p in pad], dtype=np.float64)
-    return np.pad(crop, pad, mode="constant", constant_values=0.0), start
+    # zeros around one copy of the crop (np.pad takes several times longer on a few hundred MB)
+    padded = np.zeros(tuple(n + a + b for n, (a, b) in zip(crop.shape, pad)), dtype=np.float32)
+    padded[tuple(slice(a, a + n) for n, (a, _) in zip(crop.shape, pad))] = crop
+    return padded, start
 
 
 def marching_cubes(volume: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarray]:

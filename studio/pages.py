@@ -41,12 +41,16 @@ def three_version() -> str:
 
 
 def page_csp(html: Path) -> str:
-    """Content-Security-Policy for a page: scripts from this server and the page's import map (by its hash)."""
+    """Content-Security-Policy for a page: scripts from this server and the page's import map (by its hash).
+
+    ``'wasm-unsafe-eval'`` lets the page compile WebAssembly (and nothing else: no ``eval``, no inline
+    scripts): three.js's meshopt decoder is WebAssembly, and GLBs written with ``export.compression:
+    meshopt`` need it."""
     hashes = []
     for block in _IMPORT_MAP.findall(html.read_text(encoding="utf-8")):
         digest = base64.b64encode(hashlib.sha256(block.encode("utf-8")).digest()).decode("ascii")
         hashes.append(f"'sha256-{digest}'")
-    return ("default-src 'self'; script-src 'self' " + " ".join(hashes) + "; style-src 'self'; "
+    return ("default-src 'self'; script-src 'self' 'wasm-unsafe-eval' " + " ".join(hashes) + "; style-src 'self'; "
             "img-src 'self' data: blob:; connect-src 'self' blob:; object-src 'none'; base-uri 'none'; "
             "frame-ancestors 'none'; form-action 'none'")
 

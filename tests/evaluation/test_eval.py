@@ -283,6 +283,7 @@ def test_bench_measures_in_a_child_and_formats(tmp_path):
 
     r = measure_detailizer("upsample", "cpu", repeats=1, threads=1)
     assert r["device"] == "cpu" and r["threads"] == 1 and 0 < r["median_s"] < 30 and r["peak_rss_gb"] > 0.05
+    assert 0 < r["median_cpu_s"] < 30
     assets = [{"recipe": "r.yaml", "asset": "a", "detailizer": "upsample", "fine_grid": [256, 128, 64],
                "stages_s": dict.fromkeys(("source", "voxelize", "regions", "detailize", "mesh", "export"), 0.5),
                "total_s": 3.0, "triangles": 1234, "repeats": 1, "glb_bytes": 204800}]

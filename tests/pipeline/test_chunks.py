@@ -98,3 +98,42 @@ def test_timings_are_added_per_stage(small_blocks):
     timings: dict[str, float] = {}
     detailize_and_mesh(bar_grid(), local_detailizer, MeshSettings(max_triangles=4000), timings)
     assert set(timings) == {"detailize", "mesh"} and all(t > 0 for t in timings.values())
+
+
+_PEAK_RSS = """
+import json, resource, sys
+sys.argv = ["decollage", *sys.argv[1:]]
+from cli.app import main
+try:
+    main()
+finally:
+    print(json.dumps({"peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}), file=sys.stderr)
+"""
+
+
+@pytest.mark.e2e  # a whole 20-letter build with the shipped model (about a minute on 2 cores)
+def test_a_20_letter_word_builds_with_default_settings_within_2_gb(tmp_path):
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    recipe = tmp_path / "long.yaml"
+    recipe.write_text("""version: 1
+assets:
+  - name: long
+    source: {kind: text, text: ABCDEFGHIJKLMNOPQRST, size_m: 0.5, depth_m: 0.12}
+    regions:
+      - {parts: ["*"], part: bottom, style: tower}
+      - {band: {from: 0.65}, part: top, style: druse}
+""")
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-c", _PEAK_RSS, "build", str(recipe), "-o", str(out), "--quiet"],
+                          cwd=Path(__file__).resolve().parents[2], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    peak_mb = json.loads(proc.stderr.strip().splitlines()[-1])["peak_mb"]
+    entry = json.loads((out / "manifest.json").read_text())["assets"][0]
+    assert entry["status"] == "built" and entry["chunks"] == 12
+    assert entry["coarse_grid"]["shape"][0] > 256  # longer than the old grid.max_cells
+    assert entry["mesh"]["triangles"] <= 60_000 and entry["structure"]["strict_iou"] > 0.9
+    assert peak_mb < 2000, f"peak RSS {peak_mb:.0f} MB"

@@ -68,7 +68,7 @@ def test_the_bytes_do_not_change_between_runs(mesh):
 @pytest.mark.e2e  # the Khronos validator (node)
 @pytest.mark.parametrize("profile", [EngineProfile.GENERIC, EngineProfile.UNITY])
 def test_compressed_files_and_their_decoded_data_pass_the_validator(tmp_path, mesh, profile):
-    lods = [mesh_lod for mesh_lod in (coloured_mesh(5_000),)]
+    lods = [coloured_mesh(5_000)]
     written, _ = export_asset(mesh, tmp_path, "thing", [ExportFormat.GLB], profile=profile, lods=lods,
                               glb_material=True, compression=GlbCompression.MESHOPT,
                               asset_extras={"provenance": {}})

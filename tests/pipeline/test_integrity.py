@@ -296,6 +296,7 @@ assets:
     source: {kind: cad, parts: [{name: a, shape: box, size: [1, 1, 1]}]}
     grid: {resolution: 6}
     regions: [{part: bottom, style: tower}]
+    detailize: {detailizer: decollage}
     export: {max_triangles: 2000, preview: false}
   - name: copied
     source: {kind: cad, parts: [{name: a, shape: box, size: [1, 1, 1]}]}

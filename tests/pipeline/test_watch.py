@@ -129,11 +129,12 @@ def test_watch_rebuilds_exactly_the_changed_asset(tmp_path):
 
 
 @pytest.mark.e2e
-def test_watch_latency_with_the_shipped_model(tmp_path):
-    edit, entry, _ = _watch_and_edit(tmp_path, "decollage")
+@pytest.mark.parametrize("detailizer", ["quilt", "decollage"])  # the default, and the shipped model
+def test_watch_latency_with_the_real_detailizers(tmp_path, detailizer):
+    edit, entry, _ = _watch_and_edit(tmp_path, detailizer)
     assert edit.rebuilt == ["hut3"] and entry.rebuilt == ["hut5"]
-    _check_latency(edit, f"decollage batch of {N_ASSETS}, an input file saved")
-    _check_latency(entry, f"decollage batch of {N_ASSETS}, a recipe entry saved")
+    _check_latency(edit, f"{detailizer} batch of {N_ASSETS}, an input file saved")
+    _check_latency(entry, f"{detailizer} batch of {N_ASSETS}, a recipe entry saved")
 
 
 def test_watched_files_are_the_recipe_its_inputs_and_the_weights(tmp_path):

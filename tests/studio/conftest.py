@@ -49,11 +49,12 @@ assets:
     regions:
       - {parts: [walls], part: body, style: brick}   # the walls
       - {parts: [roof], part: roof, style: moss}
-  - name: word
+  - name: word                      # a compressed GLB: the page decodes it with meshopt's decoder
     source: {kind: text, text: HI, size_m: 0.3, depth_m: 0.1}
     grid: {resolution: 8}
     regions:
       - {parts: ["*"], part: body, style: slate}
+    export: {compression: meshopt}
 """
 
 
