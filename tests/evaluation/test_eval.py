@@ -296,6 +296,14 @@ def test_bench_measures_in_a_child_and_formats(tmp_path):
     assert "| early (4 reconstruction steps + 1 adversarial) | 5.25 |" in md and "cores" in md
 
 
+def test_reference_workload_times_the_same_surface_every_run():
+    from evaluation.benchmarking import reference_workload_seconds
+
+    first, second = reference_workload_seconds(repeats=1), reference_workload_seconds(repeats=1)
+    assert first["faces"] == second["faces"] > 300_000  # the same 256³ sphere, radius 100
+    assert 0 < first["min_s"] <= first["median_s"] and first["median_cpu_s"] > 0
+
+
 def test_bench_errors_are_one_line(tmp_path):
     res = RUNNER.invoke(app, ["bench", "--checkpoint", str(tmp_path / "missing.pt"), "--out", str(tmp_path / "b.md")])
     assert res.exit_code == 2 and "checkpoint not found" in res.output and "Traceback" not in res.output
