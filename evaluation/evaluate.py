@@ -245,6 +245,9 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
         sc = case_scores[row["id"]]
         row.update(lp_detail=sc["lp_detail"], lp_iou=sc["own_lp_iou"], extrusions=sc["extrusions"],
                    patches=sc["patches"])
+    search_stats = records.stats.to_json() | {"selfrec_pairs": case_records.stats.pairs,
+                                              "selfrec_capped": case_records.stats.capped}
+    del records, case_records, case_scores  # the packed patches are not needed by the classifiers
 
     classifiers = {}
     if cls_cfg is not None:
@@ -259,6 +262,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
                 result = cls_score(r_bank, f_bank, cls_cfg, device=device)
             timer.add(f"{key}_s", time.perf_counter() - t)
             classifiers[key] = result.to_json()
+            r_bank.train.clear(), r_bank.test.clear(), f_bank.train.clear(), f_bank.test.clear()  # views done
             say(f"{key} = {result.cls:.3f} (real acc {result.real_acc:.3f}, fake acc {result.fake_acc:.3f})")
         if "matched_cls" in classifiers:  # per held-out case: (real acc + fake acc) / 2 of its own pair
             mc = classifiers["matched_cls"]
@@ -285,8 +289,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
                       "matches_protocol": set_digest(style_set) == protocol.meta.get("style_set_digest")},
         "cls_variant": cls_cfg.variant if cls_cfg else "none",
         "classifiers": classifiers,
-        "search": records.stats.to_json() | {"selfrec_pairs": case_records.stats.pairs,
-                                             "selfrec_capped": case_records.stats.capped},
+        "search": search_stats,
         "timings": timings,
         "machine": {**machine_info(device), "load_average_start": machine_start.get("load_average")},
         "outputs": rows,
