@@ -33,10 +33,11 @@ FONTS = [None, Path("/usr/share/fonts/truetype/liberation/LiberationSerif-Bold.t
          Path("/usr/share/fonts/truetype/dejavu/DejaVuSansMono.ttf")]
 
 _WRAPPER = """
-import atexit, json, os, resource, sys
+import atexit, json, os, sys
+from core.processes import own_peak_rss_mb  # this process's own peak (ru_maxrss would carry the runner's)
 def _rss():
     with open(os.environ["DECOLLAGE_BENCH_RSS"], "w") as f:
-        json.dump({"peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}, f)
+        json.dump({"peak_mb": own_peak_rss_mb()}, f)
 atexit.register(_rss)
 sys.argv = ["decollage", *sys.argv[1:]]
 from cli.app import main

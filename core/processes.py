@@ -100,3 +100,25 @@ def process_alive(pid: int, ticks: int | None = None) -> bool:
     if stat is not None and (stat[0] in ("Z", "X") or (ticks is not None and stat[1] != ticks)):
         return False
     return True
+
+
+def own_peak_rss_mb() -> float:
+    """This process's own peak resident memory, MiB.
+
+    ``getrusage(RUSAGE_SELF).ru_maxrss`` is not that in a process started by
+    fork/vfork + exec (``subprocess``, ``multiprocessing``'s spawn): Linux
+    keeps the parent's peak across exec, so a child of a 2 GB test runner
+    reports at least 2 GB. ``VmHWM`` in ``/proc/self/status`` belongs to the
+    process's own address space; ``ru_maxrss`` is the fallback where there is
+    no /proc.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

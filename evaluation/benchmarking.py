@@ -104,7 +104,8 @@ def _random_lean_checkpoint(folder: Path) -> str:
 
 def _measure(which: str, device: str, repeats: int, threads: int | None, queue) -> None:
     import os
-    import resource
+
+    from core.processes import own_peak_rss_mb  # the child's own peak (ru_maxrss carries the parent's)
 
     if threads:
         os.environ["OMP_NUM_THREADS"] = str(threads)
@@ -141,7 +142,7 @@ def _measure(which: str, device: str, repeats: int, threads: int | None, queue) 
             queue.put({
                 "detailizer": which, "load_s": load_s, "median_s": statistics.median(times), "min_s": min(times),
                 "median_cpu_s": statistics.median(cpu_times),
-                "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2,
+                "peak_rss_gb": own_peak_rss_mb() / 1024,
                 "peak_gpu_gb": torch.cuda.max_memory_allocated() / 1024**3 if on_cuda else None,
                 "device": str(getattr(det, "device", "cpu")), "threads": torch.get_num_threads(),
                 "params": info.get("generator_params"), "repeats": repeats})

@@ -141,9 +141,9 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
     Returns:
         The report (see ``evaluation.eval_report``).
     """
-    import resource
-
     import torch
+
+    from core.processes import own_peak_rss_mb
 
     from core.structure import strict_loose_iou
     from evaluation.cls_score import CLS_VARIANTS, ViewBank
@@ -276,7 +276,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
     total = time.perf_counter() - started
     timings = {k: round(v, 2) for k, v in timer.totals.items()}
     timings.update(total_s=round(total, 1), per_output_all_in_s=round(total / max(1, len(rows) + len(case_rows)), 3),
-                   peak_rss_gb=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2, 2),
+                   peak_rss_gb=round(own_peak_rss_mb() / 1024, 2),
                    **search)
     report = {
         "format": "decollage-eval", "version": 2,

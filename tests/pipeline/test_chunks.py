@@ -101,13 +101,14 @@ def test_timings_are_added_per_stage(small_blocks):
 
 
 _PEAK_RSS = """
-import json, resource, sys
+import json, sys
 sys.argv = ["decollage", *sys.argv[1:]]
 from cli.app import main
+from core.processes import own_peak_rss_mb
 try:
     main()
 finally:
-    print(json.dumps({"peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}), file=sys.stderr)
+    print(json.dumps({"peak_mb": own_peak_rss_mb()}), file=sys.stderr)
 """
 
 
