@@ -111,15 +111,8 @@ def surface_voxels(shape) -> SurfaceVoxels:
     lo = [int(np.flatnonzero(occ.any(axis=tuple(a for a in range(3) if a != ax))).min()) for ax in range(3)]
     hi = [int(np.flatnonzero(occ.any(axis=tuple(a for a in range(3) if a != ax))).max()) + 1 for ax in range(3)]
     p = np.pad(occ[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]], 1)
-    inner = (slice(1, -1),) * 3
-    core = p[inner]
-    interior = core.copy()
-    for ax in range(3):
-        for d in (0, 2):
-            sl = [slice(1, -1)] * 3
-            sl[ax] = slice(d, p.shape[ax] - 2 + d)
-            interior &= p[tuple(sl)]
-    idx = np.flatnonzero(core & ~interior)  # flat index in the core box
+    core = p[(slice(1, -1),) * 3]
+    idx = np.flatnonzero(exposed_voxels(p))  # flat index in the core box
     cx, cy, cz = np.unravel_index(idx, core.shape)
     px, py, pz = p.shape
     flat_p = p.reshape(-1)
@@ -130,6 +123,19 @@ def surface_voxels(shape) -> SurfaceVoxels:
     centre = (np.asarray(dims, np.float64) - 1) / 2
     pts = np.stack([cx + lo[0], cy + lo[1], cz + lo[2]], axis=1).astype(np.float64) - centre
     return SurfaceVoxels(pts.astype(np.float32), faces, dims)  # type: ignore[arg-type]
+
+
+def exposed_voxels(padded: np.ndarray) -> np.ndarray:
+    """(X−2, Y−2, Z−2) bool: the voxels of ``padded``'s inner box that are occupied and have an empty
+    6-neighbour (``padded``: a bool grid with at least one empty voxel of margin on every side)."""
+    inner = padded[(slice(1, -1),) * 3]
+    interior = inner.copy()
+    for ax in range(3):
+        for d in (0, 2):
+            sl = [slice(1, -1)] * 3
+            sl[ax] = slice(d, padded.shape[ax] - 2 + d)
+            interior &= padded[tuple(sl)]
+    return inner & ~interior
 
 
 def _facing_lut(w: np.ndarray) -> np.ndarray:

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.grid import EMPTY, LabeledGrid
+from evaluation.render_eval import exposed_voxels
 
 #: Held-out augmentations per exemplar.
 N_AUG: int = 2
@@ -108,15 +109,7 @@ def fine_iou(output: np.ndarray, truth: np.ndarray) -> float:
 
 def surface_points(occ: np.ndarray) -> np.ndarray:
     """(n, 3) int coordinates of the occupied voxels with an empty (or outside) 6-neighbour."""
-    p = np.pad(occ, 1)
-    inner = p[1:-1, 1:-1, 1:-1]
-    interior = inner.copy()
-    for ax in range(3):
-        for d in (0, 2):
-            sl = [slice(1, -1)] * 3
-            sl[ax] = slice(d, p.shape[ax] - 2 + d)
-            interior &= p[tuple(sl)]
-    return np.argwhere(inner & ~interior)
+    return np.argwhere(exposed_voxels(np.pad(occ, 1)))
 
 
 def chamfer(output: np.ndarray, truth: np.ndarray, n: int = CHAMFER_POINTS, seed: int = 0) -> float | None:
