@@ -510,7 +510,7 @@ def train(
     losses: dict[str, float] = {}
     times = []
     previews = _Previews(trainer, out / "previews") if tcfg.preview_every else None
-    monitor = Monitor(trainer.exemplars, cfg, trainer.aug)
+    monitor = Monitor(trainer.exemplars, cfg, trainer.aug, trainer.teacher)
     start = time.perf_counter()
     with open(log_path, "a", encoding="utf-8") as log:
         while trainer.step < tcfg.steps:

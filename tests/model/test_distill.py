@@ -125,3 +125,28 @@ def test_distill_recipe_is_warmup_plus_distillation():
     assert wt.distill_frac == 0
     with pytest.raises(Exception, match="distill_frac"):
         TrainConfig(out_dir="x", steps=1, distill_frac=1.5)
+
+
+def test_monitor_quilt_iou_compares_with_quilts_output_in_the_same_style(teacher):
+    from model.monitor import Monitor, detailize_sample
+    from model.networks import Generator
+
+    cfg = _cfg()
+    torch.manual_seed(0)
+    gen = Generator(cfg)
+    plain = Monitor(EXS, cfg, AUG).figures(gen)
+    mon = Monitor(EXS, cfg, AUG, teacher)
+    fig = mon.figures(gen)
+    assert "quilt_iou" not in plain and {k: v for k, v in fig.items() if k != "quilt_iou"} == plain
+    c, a, b = mon._inputs()[1][0]
+    grid = teacher.grid(c)
+    style = np.where(grid.occupancy, a, EMPTY).astype(np.int16)
+    quilt = QuiltDetailizer(style_set=style_set_of(EXS)).detailize(dataclasses.replace(grid, style=style), seed=0)
+    np.testing.assert_array_equal(mon.quilt_output(0, a), quilt.occupancy > ISO_LEVEL)
+    ious = []
+    for k, (c, a, b) in enumerate(mon._inputs()[1]):
+        for st in (a, b):
+            out = detailize_sample(gen, c, np.full(c.coarse_occupancy.shape, st, dtype=np.int64))
+            q = mon.quilt_output(k, st)
+            ious.append(np.count_nonzero(out & q) / np.count_nonzero(out | q))
+    assert fig["quilt_iou"] == round(float(np.mean(ious)), 4) and 0 < fig["quilt_iou"] < 1
