@@ -6,7 +6,8 @@ block: the detailizer sees it whole. A longer one is cut into blocks of ``CHUNK_
 Each block is detailized on its columns plus ``HALO_CELLS`` columns of context on either side (the
 detailizer sees its neighbours' shapes there; only the block's own columns are kept), then meshed
 (``pipeline/mesh.py``'s ``mesh_piece``) from its own fine columns plus the first fine column of the
-next block, so that two neighbouring pieces are cut from the same samples on the plane they share:
+next block (the first two when meshed at half resolution: one sample's box), so that two neighbouring
+pieces are cut from the same samples on the plane they share:
 their boundary vertices are equal bit for bit, kept in place by smoothing and decimation, and welded
 when the pieces are joined. At most two blocks' fine fields are held at once; the whole fine grid
 never exists.
@@ -146,8 +147,9 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
         start = time.perf_counter()
         last = next_field is None
         if not last:
-            field = np.concatenate([field, next_field[:1]])
-            style = np.concatenate([style, next_style[:1]])
+            shared = settings.sample_step  # the samples on the shared plane average this many fine columns
+            field = np.concatenate([field, next_field[:shared]])
+            style = np.concatenate([style, next_style[:shared]])
         piece = mesh_piece(field, style if settings.vertex_colors else None, grid.style_names, settings, shares[k],
                            x_offset=chunks[k].start * f, open_x=(k > 0, not last), iso=iso)
         if piece is not None:
