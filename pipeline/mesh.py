@@ -372,18 +372,29 @@ def taubin_smooth(verts: np.ndarray, faces: np.ndarray, iterations: int, fixed: 
     a, b = faces.T.astype(np.int32), np.roll(faces, -1, axis=1).T.astype(np.int32)
     rows, cols = np.concatenate([a.ravel(), b.ravel()]), np.concatenate([b.ravel(), a.ravel()])
     adjacency = sparse.csr_matrix((np.ones(len(rows), dtype=np.float32), (rows, cols)), shape=(n, n))
-    adjacency.sum_duplicates()
-    adjacency.data[:] = 1.0  # each neighbour once, however many faces share the edge
-    degree = np.diff(adjacency.indptr).astype(np.float32)
-    inv_degree = (np.where(degree > 0, 1.0 / np.maximum(degree, 1), 0.0)[:, None]).astype(np.float32)
+    adjacency.data[:] = 1.0  # each neighbour once, however many faces share the edge (duplicates are summed)
+    degree = np.diff(adjacency.indptr)
+    # the uniform Laplacian's averaging matrix, with the row of a fixed vertex zeroed: L·v − v moves it
+    # nowhere only if its row also drops the −v, so fixed vertices are restored after the passes instead
+    scale = np.where(degree > 0, 1.0 / np.maximum(degree, 1), 0.0).astype(np.float32)
+    adjacency.data *= np.repeat(scale, degree)
     start = np.asarray(verts, dtype=np.float64)
     out = start.astype(np.float32)
-    movable = np.ones((n, 1), np.float32) if fixed is None else (~fixed)[:, None].astype(np.float32)
+    lo = hi = None
+    if max_shift is not None:
+        lo, hi = (start - max_shift).astype(np.float32), (start + max_shift).astype(np.float32)
+    steps = [np.float32(_TAUBIN_LAMBDA), np.float32(-_TAUBIN_MU)]
+    if fixed is not None:
+        movable = (~fixed)[:, None].astype(np.float32)
+        steps = [w * movable for w in steps]
     for _ in range(iterations):
-        for weight in (_TAUBIN_LAMBDA, -_TAUBIN_MU):
-            out += np.float32(weight) * movable * (adjacency @ out * inv_degree - out)
-        if max_shift is not None:
-            np.clip(out, start - max_shift, start + max_shift, out=out)
+        for weight in steps:
+            delta = adjacency @ out
+            delta -= out
+            delta *= weight
+            out += delta
+        if lo is not None:
+            np.clip(out, lo, hi, out=out)
     result = out.astype(np.float64)
     if fixed is not None:
         result[fixed] = start[fixed]  # bit for bit: the neighbouring block welds to these
