@@ -52,8 +52,9 @@ def train_command(
                                            "model (model.ablations; e.g. no_pyramid, decor_gan); recorded in "
                                            "the checkpoint."),
     recipe: Recipe = typer.Option("reference", "--recipe",
-                                  help="Training recipe (model.recipes): reference (the shipped model's) or warmup "
-                                       "(issue 15's); recorded in the checkpoint, a resume must name the same."),
+                                  help="Training recipe (model.recipes): reference (the shipped model's), warmup "
+                                       "(issue 15's) or distill (warmup + quilt's outputs as half the "
+                                       "targets); recorded in the checkpoint, a resume must name the same."),
     seed: int = typer.Option(0, "--seed"),
     device: str = typer.Option(Device.AUTO.value, "--device", help="auto, cpu, cuda or cuda:N."),
     checkpoint_every: int = typer.Option(100, "--checkpoint-every", help="Iterations between last.pt saves."),
@@ -108,7 +109,7 @@ def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_e
     with bar:
         task = bar.add_task("train", total=steps, losses="")
         result = train(exemplars, cfg, tcfg, resume=resume, part_aliases=sset.vocabulary.alias_map(),
-                       progress=progress, style_set=record_of_set(sset).to_json())
+                       progress=progress, style_set=record_of_set(sset).to_json(), teacher_set=sset)
     if not quiet:
         console.print(f"done: step {result.step}, {result.seconds_per_iteration:.2f} s/iteration; "
                       f"model {result.model}, log {result.log}")

@@ -402,10 +402,14 @@ def _check_set(exemplars: Sequence[Exemplar], cfg: ModelConfig) -> None:
 
 
 def augmented_sample(exemplars: Sequence[Exemplar], cfg: ModelConfig, aug: AugmentConfig, seed: int,
-                     step: int) -> Sample:
-    """The adversarial step's content: an augmented (possibly combined) shape with random per-part styles."""
+                     step: int, stream: int = 1) -> Sample:
+    """The adversarial step's content: an augmented (possibly combined) shape with random per-part styles.
+
+    Drawn from (seed, step, stream); ``stream`` 1 is the adversarial step's, others serve
+    other consumers (``model.distill``'s contents) without repeating its draws.
+    """
     _check_set(exemplars, cfg)
-    rng = rng_for(seed, step, 1)
+    rng = rng_for(seed, step, stream)
     i = int(rng.integers(len(exemplars)))
     shape = augment_exemplar(exemplars[i], rng, aug)
     sources = (exemplars[i].name,)

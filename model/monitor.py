@@ -21,6 +21,10 @@ Figures (``Monitor.figures``):
   those contents; ``cell_fill_min``: the least occupied fraction of any occupied coarse
   cell's 16³ block over all outputs; ``cells_half_full``: the fraction of occupied cells
   whose block is at least half occupied.
+- ``quilt_iou`` (only for a run that distils, given its ``model.distill.QuiltTeacher``): mean
+  IOU between each of those outputs and quilt's output for the same content and style,
+  made once (quilt seed 0): how far the model has come towards its teacher on shapes
+  that are not exemplars.
 
 Cost at R = 128 on 2 cores: about 10 s for the 20 'things' exemplars and 4 contents
 (inputs prepared once per run).
@@ -28,7 +32,9 @@ Cost at R = 128 on 2 cores: about 10 s for the 20 'things' exemplars and 4 conte
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import torch
@@ -76,8 +82,11 @@ def cell_fill(fine: np.ndarray, coarse: np.ndarray, factor: int) -> np.ndarray:
 class Monitor:
     """The fixed monitor inputs of one run (drawn on first use) and the figures of a generator on them."""
 
-    def __init__(self, exemplars: Sequence[Exemplar], cfg: ModelConfig, aug: AugmentConfig) -> None:
+    def __init__(self, exemplars: Sequence[Exemplar], cfg: ModelConfig, aug: AugmentConfig,
+                 teacher: Any = None) -> None:
         self.exemplars, self.cfg, self.aug = list(exemplars), cfg, aug
+        self.teacher = teacher  # a model.distill.QuiltTeacher, or None (no quilt_iou)
+        self._quilt: dict[tuple[int, int], np.ndarray] = {}
         self._styles: list[Sample] | None = None
         self._contents: list[tuple[Sample, int, int]] | None = None
         self._baseline: float | None = None
@@ -104,6 +113,14 @@ class Monitor:
                 for s in styles]))
         return self._baseline
 
+    def quilt_output(self, k: int, style: int) -> np.ndarray:
+        """Quilt's (f·X, f·Y, f·Z) bool output on overlap content k, every cell in ``style`` (made once)."""
+        if (k, style) not in self._quilt:
+            c = self._inputs()[1][k][0]
+            one = dataclasses.replace(c, assignment=(style,) * len(c.assignment))
+            self._quilt[(k, style)] = self.teacher.target(one, 0).fine_labels != EMPTY
+        return self._quilt[(k, style)]
+
     def figures(self, gen: Generator) -> dict[str, float]:
         """The figures of the module docstring for ``gen`` (left in the mode it was in)."""
         styles, contents = self._inputs()
@@ -112,11 +129,13 @@ class Monitor:
         gen.eval()
         try:
             self_ious = [_iou(detailize_sample(gen, s), s.fine_labels != EMPTY) for s in styles]
-            overlaps, stricts, fills = [], [], []
-            for c, a, b in contents:
+            overlaps, stricts, fills, quilt = [], [], [], []
+            for k, (c, a, b) in enumerate(contents):
                 outs = [detailize_sample(gen, c, np.full(c.coarse_occupancy.shape, st, dtype=np.int64))
                         for st in (a, b)]
                 overlaps.append(_iou(*outs))
+                if self.teacher is not None:
+                    quilt += [_iou(out, self.quilt_output(k, st)) for out, st in zip(outs, (a, b))]
                 for out in outs:
                     x, y, z = c.coarse_occupancy.shape
                     pooled = out.reshape(x, f, y, f, z, f).any(axis=(1, 3, 5))
@@ -125,6 +144,7 @@ class Monitor:
         finally:
             gen.train(was_training)
         all_fills = np.concatenate(fills)
+        extra = {"quilt_iou": round(float(np.mean(quilt)), 4)} if quilt else {}
         return {
             "self_iou": round(float(np.mean(self_ious)), 4),
             "self_iou_min": round(float(np.min(self_ious)), 4),
@@ -133,4 +153,5 @@ class Monitor:
             "strict": round(float(np.mean(stricts)), 4),
             "cell_fill_min": round(float(all_fills.min()), 4),
             "cells_half_full": round(float(np.mean(all_fills >= 0.5)), 4),
+            **extra,
         }

@@ -19,6 +19,10 @@ a resume must name the same one.
   L_up lowered to 0.1·γ_up at the two finest levels (kept at 32³/64³ for structure;
   L_down unchanged); at inference every occupied coarse cell stays at least half
   occupied (``min_cell_fill`` 0.5), so thin strokes and spires survive.
+- ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
+  target the example-based ``quilt`` detailizer's output on an augmented training content
+  (new shapes, a random style per part) instead of an exemplar as itself
+  (``model/distill.py``): the exemplars' detail on shapes that are not the exemplars.
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ if TYPE_CHECKING:  # the names are read by the CLI at start-up: keep this module
 
 #: Reconstruction-only iterations at the start of the ``warmup`` recipe.
 WARMUP_ITERS = 3000
+#: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
+DISTILL_FRAC = 0.5
 
 
 def _warmup(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
@@ -44,10 +50,16 @@ def _warmup(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     return m, t
 
 
+def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup(m, t)
+    return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
+
+
 #: name → (description, change). The change takes and returns (ModelConfig, TrainConfig).
 RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelConfig, TrainConfig]]]] = {
     "reference": ("the published code's recipe (the shipped things.pt)", lambda m, t: (m, t)),
     "warmup": ("moving style codes, reconstruction warm-up, output mask, lower fine L_up, min cell fill", _warmup),
+    "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 
 

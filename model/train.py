@@ -83,6 +83,7 @@ from model.ablations import ABLATIONS
 from model.checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from model.config import ModelConfig
 from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, rng_for, style_sample
+from model.distill import QuiltTeacher, distill_sample, is_distilled
 from model.infer import cpu_threads, resolve_device
 from model.losses import discriminator_loss_levels, generator_adversarial_loss, reconstruction_loss
 from model.monitor import Monitor
@@ -124,6 +125,9 @@ class TrainConfig:
             ``lr`` along a half cosine over ``warmup_iters`` (``lr`` afterwards).
         windows_per_step: fine-level windows per reconstruction step, sharing one trunk
             forward (``windows.windows_forward``); the loss is their mean.
+        distill_frac: the fraction of reconstruction steps whose target is ``quilt``'s output on
+            an augmented training content instead of an exemplar as itself
+            (``model.distill``); 0 = none (the reference).
         monitor_every: iterations between the quick figures of ``model.monitor``
             (self-reconstruction IOU, style overlap, coarse-cell fill) written to the log
             row of that step; 0 = never.
@@ -157,6 +161,7 @@ class TrainConfig:
     warmup_lr: float = 1e-4
     windows_per_step: int = 1
     monitor_every: int = 0
+    distill_frac: float = 0.0
 
     def __post_init__(self) -> None:
         if isinstance(self.device, str) and not isinstance(self.device, Device) and self.device in set(Device):
@@ -176,6 +181,7 @@ class TrainConfig:
             (self.warmup_lr > 0, "warmup_lr", "e.g. 1e-3"),
             (1 <= self.windows_per_step <= 16, "windows_per_step", "use 1 to 16"),
             (self.monitor_every >= 0, "monitor_every", "use 0 (never) or more"),
+            (0.0 <= self.distill_frac <= 1.0, "distill_frac", "a fraction: 0 (no distillation) to 1"),
         )
         for ok, name, hint in checks:
             if not ok:
@@ -207,8 +213,10 @@ class Trainer:
     """Networks, optimizers and the three steps of an iteration, on one device."""
 
     def __init__(self, exemplars: Sequence[Exemplar], cfg: ModelConfig, tcfg: TrainConfig,
-                 part_aliases: dict[str, str] | None = None) -> None:
+                 part_aliases: dict[str, str] | None = None, teacher_set: Any = None) -> None:
         self.exemplars, self.cfg, self.tcfg, self.aug = list(exemplars), cfg, tcfg, tcfg.augment()
+        # distillation's quilt over the run's set (teacher_set: its StyleSet; None: made from the exemplars)
+        self.teacher = QuiltTeacher(self.exemplars, teacher_set) if tcfg.distill_frac > 0 else None
         self.part_aliases = dict(part_aliases or {})
         self.style_set: dict | None = None  # the set's provenance record, stored in checkpoints
         self.device = resolve_device(tcfg.device)
@@ -271,15 +279,30 @@ class Trainer:
 
     # ------------------------------------------------------------------ steps
 
+    def reconstruction_sample(self, it: int, r: int) -> tuple[Sample, bool]:
+        """Reconstruction step r of iteration ``it``'s sample, and whether it is a distilled one.
+
+        An exemplar as itself (its style drawn from (seed, it, 100 + r)), or, with
+        probability ``distill_frac``, an augmented content with quilt's output as its fine
+        shape (``model.distill.distill_sample``). A function of (seed, it, r) only.
+        """
+        t = self.tcfg
+        if self.teacher is not None and is_distilled(t.seed, it, r, t.distill_frac):
+            return distill_sample(self.teacher, self.cfg, self.aug, t.seed, it, r), True
+        style = int(rng_for(t.seed, it, 100 + r).integers(self.cfg.n_styles))
+        return style_sample(self.exemplars, style, self.cfg, self.aug, t.seed, it * 8 + r), False
+
     def reconstruction_step(self, it: int, r: int) -> tuple[dict[str, float], SampleView]:
         """One G step reproducing a style shape in its own style; returns losses and the sample's first view.
+
+        With ``distill_frac`` > 0 the step is, with that probability, a distilled one instead:
+        an augmented content with quilt's output as target (``model.distill``).
 
         With ``windows_per_step`` K > 1 the fine levels run on K windows of the sample
         after one trunk forward, and the loss is the mean of the K windows' losses (the
         whole levels' terms count once).
         """
-        style = int(rng_for(self.tcfg.seed, it, 100 + r).integers(self.cfg.n_styles))
-        s = style_sample(self.exemplars, style, self.cfg, self.aug, self.tcfg.seed, it * 8 + r)
+        s, distilled = self.reconstruction_sample(it, r)
         views = self._views(s, it, 200 + r, self.tcfg.windows_per_step)
         levels, beta = self.cfg.supervised_levels, self.cfg.losses.beta_recon
         per_view = [reconstruction_loss(outs, [v.target(j) for j in levels], beta)["total"]
@@ -288,7 +311,10 @@ class Trainer:
         self.opt_g.zero_grad(set_to_none=True)
         loss.backward()
         self.opt_g.step()
-        return {"recon": loss.item()}, views[0]
+        out = {"recon": loss.item()}
+        if self.teacher is not None:
+            out["distilled"] = float(distilled)
+        return out, views[0]
 
     def adversarial_steps(self, it: int, real: "SampleView") -> dict[str, float]:
         """The G adversarial step, then the D step, on one augmented content.
@@ -346,13 +372,16 @@ class Trainer:
         if it < self.tcfg.warmup_iters:
             losses, _ = self.reconstruction_step(it, 0)
             self.step += 1
-            return {"recon": losses["recon"], "lr": lr}
+            return {**losses, "lr": lr}
         n_rec = self.tcfg.recon_steps_early if it < self.tcfg.recon_early_iters else 1
-        recon, real = [], None
+        recon, distilled, real = [], 0.0, None
         for r in range(max(1, n_rec)):
             losses, real = self.reconstruction_step(it, r)
             recon.append(losses["recon"])
+            distilled += losses.get("distilled", 0.0)
         out = {"recon": float(np.mean(recon))}
+        if self.teacher is not None:
+            out["distilled"] = distilled  # how many of this iteration's reconstruction steps were distilled
         out.update(self.adversarial_steps(it, real))
         self.step += 1
         return out
@@ -449,6 +478,7 @@ def train(
     progress: Callable[[int, int, dict[str, float]], None] | None = None,
     style_set: dict | None = None,
     stop_after_s: float | None = None,
+    teacher_set: Any = None,
 ) -> TrainResult:
     """Train (or continue training) up to ``tcfg.steps`` iterations; see the module docstring.
 
@@ -462,6 +492,8 @@ def train(
             start (a time-boxed session, e.g. ``scripts/train_resume.py`` on a lent GPU); the
             state is saved to ``last.pt`` and ``model.pt`` as at the end, and the same call
             continues later.
+        teacher_set: the ``stylesets.format.StyleSet`` the exemplars were read from, quilt's source
+            when ``tcfg.distill_frac`` > 0 (None: a set made from the exemplars themselves).
     Raises:
         DetailizeError: inconsistent set/config, unusable resume checkpoint, unwritable folder,
             or a loss that became NaN/inf (training diverged; the last checkpoint is kept).
@@ -469,7 +501,7 @@ def train(
     out = Path(tcfg.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     last, model_path, log_path = out / "last.pt", out / "model.pt", out / "log.jsonl"
-    trainer = Trainer(exemplars, cfg, tcfg, part_aliases)
+    trainer = Trainer(exemplars, cfg, tcfg, part_aliases, teacher_set)
     trainer.style_set = style_set
     if resume and last.exists():
         trainer.restore(last)
@@ -478,7 +510,7 @@ def train(
     losses: dict[str, float] = {}
     times = []
     previews = _Previews(trainer, out / "previews") if tcfg.preview_every else None
-    monitor = Monitor(trainer.exemplars, cfg, trainer.aug)
+    monitor = Monitor(trainer.exemplars, cfg, trainer.aug, trainer.teacher)
     start = time.perf_counter()
     with open(log_path, "a", encoding="utf-8") as log:
         while trainer.step < tcfg.steps:

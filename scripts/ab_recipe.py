@@ -58,7 +58,7 @@ def main() -> None:
             print(f"step {step}/{total} {time.time() - t0:.0f}s " + " ".join(f"{k} {v:.4f}" for k, v in losses.items()),
                   flush=True)
 
-    res = train(exemplars, cfg, tcfg, part_aliases=sset.vocabulary.alias_map(), progress=progress)
+    res = train(exemplars, cfg, tcfg, part_aliases=sset.vocabulary.alias_map(), progress=progress, teacher_set=sset)
     rows = [json.loads(line) for line in open(res.log)]
     for r in rows:
         if "monitor" in r:

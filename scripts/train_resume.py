@@ -52,7 +52,8 @@ def main() -> None:
                   + " ".join(f"{k} {v:.4f}" for k, v in losses.items()), flush=True)
 
     res = train(exemplars, ck.config, tcfg, part_aliases=dict(ck.part_aliases), progress=progress,
-                style_set=ck.training.get("style_set"), stop_after_s=None if a.minutes is None else 60 * a.minutes)
+                style_set=ck.training.get("style_set"), stop_after_s=None if a.minutes is None else 60 * a.minutes,
+                teacher_set=sset)
     print(f"stopped at step {res.step}; {res.seconds_per_iteration:.3f} s/iteration this session; "
           f"{res.checkpoint}, {res.model}, {res.log}", flush=True)
 
