@@ -296,6 +296,9 @@ def to_trimesh(pieces: list[Piece], origin_m, voxel_size_m: float, colors: bool)
         faces = inverse.reshape(-1)[faces]
         rgba = rgba[first] if rgba is not None else None
         faces = drop_coincident_faces(faces)
+        source, faces = split_pinches(faces, len(verts))  # the weld merged the pieces' own pinch copies
+        verts = verts[source]
+        rgba = rgba[source] if rgba is not None else None
     origin = np.asarray(origin_m, dtype=np.float64)
     verts_m = origin + (verts + 0.5) * float(voxel_size_m)
     mesh = trimesh.Trimesh(verts_m, faces, vertex_colors=rgba, process=False, validate=False)
@@ -451,7 +454,90 @@ def decimate_kept(verts: np.ndarray, faces: np.ndarray, target: int,
         raise MeshingError(f"decimation to {target} triangles left nothing", field="export.max_triangles",
                            hint="raise export.max_triangles")
     kept, inverse = np.unique(out_f, return_inverse=True)
-    return kept, inverse.reshape(-1, 3).astype(np.int64)
+    source, faces_out = split_pinches(inverse.reshape(-1, 3).astype(np.int64), len(kept))
+    return kept[source], faces_out
+
+
+def _edge_groups(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Half-edges grouped by undirected edge: (order (3F,) half-edges sorted by edge, group starts, counts).
+    Half-edge c runs from corner c (``faces.reshape(-1)[c]``) to the next corner of its face."""
+    start = faces.reshape(-1)
+    corner = np.arange(len(start))
+    end = start[3 * (corner // 3) + (corner + 1) % 3]
+    key = np.minimum(start, end) * np.int64(n_vertices) + np.maximum(start, end)
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+    return order, starts, np.diff(np.r_[starts, len(key)])
+
+
+def split_pinches(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """Give each sheet of a pinch its own vertices, so that fewer edges are used by more than two faces.
+
+    Decimation sometimes brings two parts of a closed surface together along an edge (the edge then
+    belongs to four faces) or at a vertex: the mesh stays closed but is no longer a 2-manifold, and readers
+    that check (trimesh's ``is_watertight``, engines' collision cookers) refuse it. A vertex's faces are
+    grouped into fans, two faces being in one fan when they share an edge through the vertex that only they
+    use; the first fan keeps the vertex, each further fan gets a copy at the same position. Where the sheets
+    cross along the edge (one sheet's fans at its two ends hold different faces), splitting would open holes:
+    such an edge's faces stay joined. Geometry is unchanged, and no edge ends up in fewer than two faces.
+
+    Args:
+        faces: (F, 3) int64 vertex indices.
+        n_vertices: how many vertices the faces index.
+    Returns:
+        (V',) int64 the original vertex of each output vertex (the first ``n_vertices`` are the identity,
+        copies come after them) and (F, 3) the faces into the output vertices.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    unchanged = np.arange(n_vertices), faces
+    if len(faces) == 0:
+        return unchanged
+    order, starts, counts = _edge_groups(faces, n_vertices)
+    if (counts == 2).all():
+        return unchanged  # every edge in two faces: nothing pinched along an edge
+    start = faces.reshape(-1)
+    corner = np.arange(len(start))
+    nxt = 3 * (corner // 3) + (corner + 1) % 3
+    # an edge used by exactly two faces joins, for each of its two vertices, the corners holding it in them
+    # (half-edge c runs from corner c to corner nxt[c])
+    e1, e2 = order[starts[counts == 2]], order[starts[counts == 2] + 1]
+    flipped = start[e1] == start[e2]  # the two faces wind the edge the same way (not outward-consistent)
+    rows = [e1, nxt[e1]]
+    cols = [np.where(flipped, e2, nxt[e2]), np.where(flipped, nxt[e2], e2)]
+    group_of = np.empty(len(start), dtype=np.int64)  # half-edge → its edge's group
+    group_of[order] = np.repeat(np.arange(len(starts)), counts)
+    for _ in range(8):
+        graph = coo_matrix((np.ones(sum(len(r) for r in rows), dtype=np.int8),
+                            (np.concatenate(rows), np.concatenate(cols))), shape=(len(start), len(start)))
+        _, fan = connected_components(graph, directed=False)
+        # per vertex, its fans in order of their first corner: the first keeps the vertex, the others are copies
+        fan_first = np.full(fan.max() + 1, len(start), dtype=np.int64)
+        np.minimum.at(fan_first, fan, corner)
+        fan_vertex = start[fan_first]
+        by_vertex = np.lexsort((fan_first, fan_vertex))
+        keeps = np.r_[True, fan_vertex[by_vertex][1:] != fan_vertex[by_vertex][:-1]]
+        new_id = np.empty(len(fan_first), dtype=np.int64)
+        new_id[by_vertex[keeps]] = fan_vertex[by_vertex[keeps]]
+        extra = by_vertex[~keeps]
+        new_id[extra] = n_vertices + np.arange(len(extra))
+        out_faces = new_id[fan].reshape(-1, 3)
+        out_order, out_starts, out_counts = _edge_groups(out_faces, n_vertices + len(extra))
+        lone = out_order[out_starts[out_counts == 1]]  # half-edges whose edge the split left open
+        if len(lone) == 0:
+            return np.concatenate([np.arange(n_vertices), fan_vertex[extra]]), out_faces
+        # those edges' faces were tangled: join all of them at both ends and split again
+        tangled = np.isin(group_of, np.unique(group_of[lone]))
+        h = np.flatnonzero(tangled)
+        h = h[np.argsort(group_of[h], kind="stable")]
+        first_of = np.r_[True, group_of[h][1:] != group_of[h][:-1]]
+        lead = h[first_of][np.cumsum(first_of) - 1]  # the group's first half-edge, for every member
+        same = start[h] == start[lead]
+        rows += [h, nxt[h]]
+        cols += [np.where(same, lead, nxt[lead]), np.where(same, nxt[lead], lead)]
+    return unchanged
 
 
 def drop_coincident_faces(faces: np.ndarray) -> np.ndarray:

@@ -32,6 +32,7 @@ from pipeline.mesh import (
     mesh_fine_grid,
     mesh_sample_step,
     signed_volume,
+    split_pinches,
 )
 from pipeline.palette import NEUTRAL_RGBA, PALETTE, palette_rgba, style_color
 from core.recipe import ExportFormat, ExportSettings, MeshResolution, Pivot
@@ -219,6 +220,51 @@ def test_auto_mesh_resolution_follows_the_budget():
     assert MeshSettings.from_export(ExportSettings(max_triangles=100, mesh_resolution="auto"), bar).sample_step == 2
     with pytest.raises(ValueError):
         MeshSettings(sample_step=3)
+
+
+def _tetra(apex_y: float, offset: int) -> np.ndarray:
+    """Faces of an outward tetrahedron on the edge (0, 1) with its other corners at offset, offset + 1."""
+    faces = np.array([[0, 1, offset], [0, offset + 1, 1], [1, offset + 1, offset], [0, offset, offset + 1]])
+    return faces if apex_y > 0 else faces[:, ::-1]
+
+
+def test_a_pinch_along_an_edge_is_split_into_two_closed_sheets():
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0.2], [0.5, 0.3, 1], [0.5, -1, 0.2], [0.5, -0.3, -1]], float)
+    upper, lower = _tetra(1, 2), _tetra(-1, 4)
+    for tet in (upper, lower):  # wind both outward
+        if signed_volume(verts, tet) < 0:
+            tet[:] = tet[:, ::-1]
+    faces = np.concatenate([upper, lower])
+    assert not trimesh.Trimesh(verts, faces, process=False).is_watertight  # edge (0, 1) is in four faces
+    source, split = split_pinches(faces, len(verts))
+    mesh = trimesh.Trimesh(verts[source], split, process=False)
+    assert mesh.is_watertight and len(source) == 8 and (source[:6] == np.arange(6)).all()
+    assert mesh.volume == pytest.approx(signed_volume(verts, faces))
+    # a closed 2-manifold is returned as it was
+    same_source, same = split_pinches(upper, 6)
+    assert (same == upper).all() and (same_source == np.arange(6)).all()
+
+
+def test_splitting_pinches_of_decimated_meshes_never_opens_holes(sphere_grid, monkeypatch):
+    from pipeline import mesh as mesh_mod
+
+    rng = np.random.default_rng(5)
+    occupancy = np.asarray(sphere_grid.occupancy)
+    fixed = 0
+    for noise, target in ((0.2, 3000), (0.35, 3000), (0.35, 800)):
+        rough = (occupancy + rng.normal(0, noise, occupancy.shape) > 0.5).astype(np.float32)
+        volume, _ = mesh_mod.crop_padded(rough, 0.4)
+        verts, faces = mesh_mod.marching_cubes(volume, 0.4)
+        with monkeypatch.context() as patch:  # the simplifier's own output, pinches and all
+            patch.setattr(mesh_mod, "split_pinches", lambda f, n: (np.arange(n), f))
+            kept, raw = mesh_mod.decimate_kept(verts, faces, target)
+        source, split = split_pinches(raw, len(kept))
+        before = np.bincount(mesh_mod._edge_groups(raw, len(kept))[2], minlength=8)
+        after = np.bincount(mesh_mod._edge_groups(split, len(source))[2], minlength=8)
+        assert after[1] <= before[1] and after[3:].sum() <= before[3:].sum()  # no new holes, no new pinches
+        assert len(split) == len(raw) and (kept[source][:len(kept)] == kept).all()
+        fixed += before[3:].sum() - after[3:].sum()
+    assert fixed > 0
 
 
 def test_meshing_is_deterministic(sphere_grid):
