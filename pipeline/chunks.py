@@ -120,12 +120,15 @@ def merge_extras(extras: list[dict]) -> dict:
 
 
 def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], FineGrid], settings: MeshSettings,
-                       timings: dict[str, float] | None = None, iso: float = ISO_LEVEL) -> DetailedMesh:
+                       timings: dict[str, float] | None = None, iso: float = ISO_LEVEL,
+                       on_block: Callable[[int, np.ndarray, np.ndarray], None] | None = None) -> DetailedMesh:
     """Detailize ``grid`` and mesh the result, block by block along x (see the module docstring).
 
     Args:
         detailize: LabeledGrid → FineGrid (the asset's detailizer, seed bound).
         timings: seconds spent in ``"detailize"`` and ``"mesh"`` are added here.
+        on_block: called with (first fine column, (W, Y, Z) float32 occupancy, int16 style) of each block's own
+            columns, in order (e.g. ``pipeline/vox_export.py``'s ``FineVox.add``).
     Raises:
         MeshingError: nothing to mesh, or a meshing step failed; a detailizer's own errors.
     """
@@ -162,6 +165,8 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
         own = slice((chunk.start - chunk.lo) * f, (chunk.stop - chunk.lo) * f)
         field, style = fine.occupancy[own], fine.style[own]
         extras.append(fine.extras)
+        if on_block is not None:
+            on_block(chunk.start * f, field, style)
         coarse = grid.occupancy[chunk.start:chunk.stop]
         counts += structure_counts(field > iso, coarse, f)
         if len(chunks) == 1:
