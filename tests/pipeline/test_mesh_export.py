@@ -28,12 +28,11 @@ from pipeline.mesh import (
     HALF_RES_FACE_RATIO,
     MeshSettings,
     box_average,
-    drop_coincident_faces,
     mesh_fine_grid,
     mesh_sample_step,
     signed_volume,
-    split_pinches,
 )
+from pipeline.simplify import drop_coincident_faces, split_pinches
 from pipeline.palette import NEUTRAL_RGBA, PALETTE, palette_rgba, style_color
 from core.recipe import ExportFormat, ExportSettings, MeshResolution, Pivot
 
@@ -247,6 +246,7 @@ def test_a_pinch_along_an_edge_is_split_into_two_closed_sheets():
 
 def test_splitting_pinches_of_decimated_meshes_never_opens_holes(sphere_grid, monkeypatch):
     from pipeline import mesh as mesh_mod
+    from pipeline import simplify
 
     rng = np.random.default_rng(5)
     occupancy = np.asarray(sphere_grid.occupancy)
@@ -256,11 +256,11 @@ def test_splitting_pinches_of_decimated_meshes_never_opens_holes(sphere_grid, mo
         volume, _ = mesh_mod.crop_padded(rough, 0.4)
         verts, faces = mesh_mod.marching_cubes(volume, 0.4)
         with monkeypatch.context() as patch:  # the simplifier's own output, pinches and all
-            patch.setattr(mesh_mod, "split_pinches", lambda f, n: (np.arange(n), f))
-            kept, raw = mesh_mod.decimate_kept(verts, faces, target)
+            patch.setattr(simplify, "split_pinches", lambda f, n: (np.arange(n), f))
+            kept, raw = simplify.decimate_kept(verts, faces, target)
         source, split = split_pinches(raw, len(kept))
-        before = np.bincount(mesh_mod._edge_groups(raw, len(kept))[2], minlength=8)
-        after = np.bincount(mesh_mod._edge_groups(split, len(source))[2], minlength=8)
+        before = np.bincount(simplify.edge_groups(raw, len(kept))[2], minlength=8)
+        after = np.bincount(simplify.edge_groups(split, len(source))[2], minlength=8)
         assert after[1] <= before[1] and after[3:].sum() <= before[3:].sum()  # no new holes, no new pinches
         assert len(split) == len(raw) and (kept[source][:len(kept)] == kept).all()
         fixed += before[3:].sum() - after[3:].sum()
