@@ -24,7 +24,8 @@ Figures (``Monitor.figures``):
 - ``quilt_iou`` (only for a run that distils, given its ``model.distill.QuiltTeacher``): mean
   IOU between each of those outputs and quilt's output for the same content and style,
   made once (quilt seed 0): how far the model has come towards its teacher on shapes
-  that are not exemplars.
+  that are not exemplars; ``upsample_quilt_iou``: the same for the upsample baseline
+  (style-blind, so the same output for both styles).
 
 Cost at R = 128 on 2 cores: about 10 s for the 20 'things' exemplars and 4 contents
 (inputs prepared once per run).
@@ -144,7 +145,11 @@ class Monitor:
         finally:
             gen.train(was_training)
         all_fills = np.concatenate(fills)
-        extra = {"quilt_iou": round(float(np.mean(quilt)), 4)} if quilt else {}
+        extra = {}
+        if quilt:
+            up = [_iou(smooth_upsample(c.coarse_occupancy, f, SIGMA_FINE_VOXELS) > ISO_LEVEL, self.quilt_output(k, st))
+                  for k, (c, a, b) in enumerate(contents) for st in (a, b)]
+            extra = {"quilt_iou": round(float(np.mean(quilt)), 4), "upsample_quilt_iou": round(float(np.mean(up)), 4)}
         return {
             "self_iou": round(float(np.mean(self_ious)), 4),
             "self_iou_min": round(float(np.min(self_ious)), 4),
