@@ -44,7 +44,6 @@ if TYPE_CHECKING:
 _TAUBIN_LAMBDA = 0.5
 _TAUBIN_MU = 0.53
 
-
 # How far inside the surface (in voxels) a vertex looks up its style: half a
 # voxel lands in the occupied voxel next to the surface, whose style is the
 # detailizer's own choice rather than the fill of an empty neighbour.
@@ -382,8 +381,7 @@ def taubin_smooth(verts: np.ndarray, faces: np.ndarray, iterations: int, fixed: 
     adjacency = sparse.csr_matrix((np.ones(len(rows), dtype=np.float32), (rows, cols)), shape=(n, n))
     adjacency.data[:] = 1.0  # each neighbour once, however many faces share the edge (duplicates are summed)
     degree = np.diff(adjacency.indptr)
-    # the uniform Laplacian's averaging matrix, with the row of a fixed vertex zeroed: L·v − v moves it
-    # nowhere only if its row also drops the −v, so fixed vertices are restored after the passes instead
+    # the averaging matrix (row i: 1/degree at i's neighbours), so that a step is out += w·(A·out − out)
     scale = np.where(degree > 0, 1.0 / np.maximum(degree, 1), 0.0).astype(np.float32)
     adjacency.data *= np.repeat(scale, degree)
     start = np.asarray(verts, dtype=np.float64)
