@@ -22,12 +22,15 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
-#: Runs the CLI and, at exit, records the peak RSS of this process and of its largest worker process.
+#: Runs the CLI and, at exit, records the peak RSS of this process (its own, ``VmHWM``: ``ru_maxrss`` would
+#: carry this script's across exec) and of its largest worker process (``RUSAGE_CHILDREN``: forked workers
+#: count the pages they share with the main process, so an upper bound).
 _WRAPPER = """
 import atexit, json, os, resource, sys
+from core.processes import own_peak_rss_mb
 def _rss():
     with open(os.environ["DECOLLAGE_BENCH_RSS"], "w") as f:
-        json.dump({"main_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        json.dump({"main_mb": own_peak_rss_mb(),
                    "worker_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024}, f)
 atexit.register(_rss)
 sys.argv = ["decollage", *sys.argv[1:]]

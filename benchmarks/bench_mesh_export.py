@@ -23,7 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pipeline.export import ENCODERS, export_mesh  # noqa: E402
 from core.grid import ISO_LEVEL, FineGrid  # noqa: E402
-from pipeline.mesh import MeshSettings, crop_padded, decimate, marching_cubes, mesh_fine_grid  # noqa: E402
+from pipeline.mesh import MeshSettings, crop_padded, marching_cubes, mesh_fine_grid  # noqa: E402
+from pipeline.simplify import decimate  # noqa: E402
 from geometry.preview import render_preview  # noqa: E402
 from core.recipe import ExportFormat, Pivot  # noqa: E402
 

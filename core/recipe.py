@@ -148,6 +148,20 @@ class GlbCompression(str, Enum):
     MESHOPT = "meshopt"
 
 
+class MeshResolution(str, Enum):
+    """At which resolution the fine field is meshed (pipeline/mesh.py's ``mesh_sample_step``).
+
+    full: marching cubes on every fine voxel; half: on the field box-averaged 2×2×2 (a quarter of the
+    triangles to smooth and decimate; features thinner than two fine voxels soften); auto (the default):
+    half where the triangle budget keeps at most 1 in ``HALF_RES_FACE_RATIO`` of the full-resolution
+    surface's triangles (long words, small budgets: there decimation removes that detail anyway), else full.
+    """
+
+    AUTO = "auto"
+    FULL = "full"
+    HALF = "half"
+
+
 class VoxExport(str, Enum):
     """Which grid of an asset ``export.vox`` writes as a MagicaVoxel file (pipeline/vox_export.py)."""
 
@@ -274,6 +288,10 @@ class ExportSettings(_Strict):
         "auto", description="Decimate above this many triangles; 'auto' = a budget from the asset's coarse surface "
                             "and its 'use' (pipeline/mesh.py's triangle_budget); null = never.")
     use: AssetUse = Field(AssetUse.PROP, description="hero, prop or background: sets the 'auto' triangle budget.")
+    mesh_resolution: MeshResolution = Field(MeshResolution.AUTO, description="Mesh the fine field at 'full' "
+                                            "resolution or box-averaged to 'half' (4× fewer triangles before "
+                                            "decimation); 'auto' = half when the triangle budget is far below the "
+                                            "full surface's count.")
     pivot: Pivot = Pivot.BOTTOM_CENTER
     vertex_colors: bool = True
     compression: GlbCompression = Field(GlbCompression.NONE, description="GLB geometry: 'none' (plain, every "

@@ -28,7 +28,8 @@ from core.capture import captured_warnings
 from core.detailizer import effective_checkpoint, get_detailizer, kernel_threads
 from core.errors import DecollageError, RecipeError, UsageError
 from core.files import InputKind, check_input_file, sha256_file
-from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset
+from core.grid import UPSAMPLE_FACTOR
+from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset, VoxExport
 from core.recipe_loader import LoadedRecipe
 from geometry.voxelize import mesh_grid_shape, voxelize
 from pipeline.cache import closure_records, portable_path
@@ -40,7 +41,7 @@ from pipeline.mesh import MeshSettings, mesh_stats
 from pipeline.provenance import asset_provenance, glb_extras
 from pipeline.regions import apply_regions
 from pipeline.report import AssetReport, AssetStatus
-from pipeline.vox_export import vox_files
+from pipeline.vox_export import FineVox, vox_files
 from sources import PartMeshes, load_source, preflight_source
 
 
@@ -235,9 +236,12 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
          *((p, "detailizer") for p in getattr(detailizer, "input_files", ()))], loaded.base_dir)
     export = asset.export
     progress.stage("detailize")
+    fine_vox = (FineVox(tuple(n * UPSAMPLE_FACTOR for n in grid.shape), grid.style_names)
+                if VoxExport.FINE in export.vox else None)  # filled block by block, as the blocks are detailized
     with kernel_threads(ASSET_THREADS):  # detailize and mesh block by block (pipeline/chunks.py)
         detailed = detailize_and_mesh(grid, lambda g: detailizer.detailize(g, seed=asset.detailize.seed),
-                                      MeshSettings.from_export(export, grid.occupancy), report.timings_s)
+                                      MeshSettings.from_export(export, grid.occupancy), report.timings_s,
+                                      on_block=fine_vox.add if fine_vox is not None else None)
     for stage in ("detailize", "mesh"):
         report.timings_s[stage] = round(report.timings_s.get(stage, 0.0), 3)
     mesh = detailed.mesh
@@ -247,7 +251,7 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
         collision = make_collision(export.collision, mesh, grid)
 
     with _timed(report, "export", progress):
-        vox_jobs, vox_record = vox_files(export.vox, grid, detailed.fine, asset.name)
+        vox_jobs, vox_record = vox_files(export.vox, grid, fine_vox, asset.name)
         written, pivot_offset = export_asset(mesh, out_dir, asset.name, export.formats, export.pivot,
                                              preview_size_px=export.preview_size_px if export.preview else None,
                                              glb_material=export.glb_material, profile=export.profile,

@@ -6,7 +6,8 @@ block: the detailizer sees it whole. A longer one is cut into blocks of ``CHUNK_
 Each block is detailized on its columns plus ``HALO_CELLS`` columns of context on either side (the
 detailizer sees its neighbours' shapes there; only the block's own columns are kept), then meshed
 (``pipeline/mesh.py``'s ``mesh_piece``) from its own fine columns plus the first fine column of the
-next block, so that two neighbouring pieces are cut from the same samples on the plane they share:
+next block (the first two when meshed at half resolution: one sample's box), so that two neighbouring
+pieces are cut from the same samples on the plane they share:
 their boundary vertices are equal bit for bit, kept in place by smoothing and decimation, and welded
 when the pieces are joined. At most two blocks' fine fields are held at once; the whole fine grid
 never exists.
@@ -119,12 +120,15 @@ def merge_extras(extras: list[dict]) -> dict:
 
 
 def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], FineGrid], settings: MeshSettings,
-                       timings: dict[str, float] | None = None, iso: float = ISO_LEVEL) -> DetailedMesh:
+                       timings: dict[str, float] | None = None, iso: float = ISO_LEVEL,
+                       on_block: Callable[[int, np.ndarray, np.ndarray], None] | None = None) -> DetailedMesh:
     """Detailize ``grid`` and mesh the result, block by block along x (see the module docstring).
 
     Args:
         detailize: LabeledGrid → FineGrid (the asset's detailizer, seed bound).
         timings: seconds spent in ``"detailize"`` and ``"mesh"`` are added here.
+        on_block: called with (first fine column, (W, Y, Z) float32 occupancy, int16 style) of each block's own
+            columns, in order (e.g. ``pipeline/vox_export.py``'s ``FineVox.add``).
     Raises:
         MeshingError: nothing to mesh, or a meshing step failed; a detailizer's own errors.
     """
@@ -146,8 +150,9 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
         start = time.perf_counter()
         last = next_field is None
         if not last:
-            field = np.concatenate([field, next_field[:1]])
-            style = np.concatenate([style, next_style[:1]])
+            shared = settings.sample_step  # the samples on the shared plane average this many fine columns
+            field = np.concatenate([field, next_field[:shared]])
+            style = np.concatenate([style, next_style[:shared]])
         piece = mesh_piece(field, style if settings.vertex_colors else None, grid.style_names, settings, shares[k],
                            x_offset=chunks[k].start * f, open_x=(k > 0, not last), iso=iso)
         if piece is not None:
@@ -160,6 +165,8 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
         own = slice((chunk.start - chunk.lo) * f, (chunk.stop - chunk.lo) * f)
         field, style = fine.occupancy[own], fine.style[own]
         extras.append(fine.extras)
+        if on_block is not None:
+            on_block(chunk.start * f, field, style)
         coarse = grid.occupancy[chunk.start:chunk.stop]
         counts += structure_counts(field > iso, coarse, f)
         if len(chunks) == 1:

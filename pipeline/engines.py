@@ -34,7 +34,7 @@ import numpy as np
 from core.errors import MeshingError
 from core.grid import LabeledGrid
 from core.recipe import CollisionKind, EngineProfile
-from pipeline.mesh import decimate_kept
+from pipeline.simplify import decimate_kept
 
 if TYPE_CHECKING:
     import trimesh

@@ -3,6 +3,8 @@
 Steps (all deterministic), per block of the field (``mesh_piece``; a whole asset is one block unless
 ``pipeline/chunks.py`` cut it along x):
 
+0. at ``MeshSettings.sample_step`` 2 (``export.mesh_resolution``), box-average the field 2×2×2
+   (``box_average``): a quarter of the triangles for the steps below;
 1. crop the field to the bounding box of voxels ≥ iso plus a one-voxel margin;
 2. pad the crop with one voxel of zeros, so that shapes touching the grid
    border still give a closed surface (marching cubes leaves it open otherwise);
@@ -10,7 +12,7 @@ Steps (all deterministic), per block of the field (``mesh_piece``; a whole asset
 3. marching cubes (scikit-image, Lewiner) at the iso level; faces are flipped so
    that normals point outward (positive volume);
 4. optional Taubin smoothing, then quadric decimation (meshoptimizer) down
-   to the block's share of ``max_triangles``, both in voxel units so that they do not
+   to the block's share of ``max_triangles``, both in fine-voxel units so that they do not
    depend on scale; vertices on a side shared with another block stay where they are;
 5. vertex colours: the palette colour of the style of the voxel just inside the
    surface at each vertex;
@@ -29,8 +31,9 @@ import numpy as np
 
 from core.errors import MeshingError
 from core.grid import ISO_LEVEL, FineGrid
-from core.recipe import AssetUse, ExportSettings
+from core.recipe import AssetUse, ExportSettings, MeshResolution
 from pipeline.palette import palette_rgba
+from pipeline.simplify import decimate, drop_coincident_faces, split_pinches
 
 if TYPE_CHECKING:
     import trimesh
@@ -40,10 +43,6 @@ if TYPE_CHECKING:
 # marching-cubes staircase with almost no shrinkage.
 _TAUBIN_LAMBDA = 0.5
 _TAUBIN_MU = 0.53
-
-#: Largest error meshoptimizer's simplifier may make, relative to the mesh's extent: high enough that the
-#: triangle count, not the error, decides where it stops (as with a ``max_triangles`` budget).
-DECIMATE_MAX_ERROR = 1.0
 
 # How far inside the surface (in voxels) a vertex looks up its style: half a
 # voxel lands in the occupied voxel next to the surface, whose style is the
@@ -58,6 +57,22 @@ TRIANGLES_PER_COARSE_FACE = {AssetUse.HERO: 64, AssetUse.PROP: 32, AssetUse.BACK
 MAX_AUTO_TRIANGLES = {AssetUse.HERO: 200_000, AssetUse.PROP: 60_000, AssetUse.BACKGROUND: 12_000}
 MIN_AUTO_TRIANGLES = 2_000
 
+#: Marching-cubes triangles per exposed coarse face of a flat-faced shape at full resolution (16 × 16 fine
+#: faces, two triangles each); detail adds more, so this is the low end of the surface's count.
+FULL_RES_FACES_PER_COARSE_FACE = 2 * 16 * 16
+#: ``mesh_resolution: auto`` meshes at half resolution when the full-resolution surface (estimated as above)
+#: has at least this many triangles per triangle of the budget. Measured (docs/benchmarks.md, "Meshing
+#: resolution"): at a 53× reduction (a 6-letter word, 3.2 M → 60 k) half resolution is within 0.04 voxel
+#: of full resolution's mean surface error and 5× faster; at 23× (the cottage, 676 k → 30 k) its p99 error
+#: doubles (1.0 → 2.1 voxels: thin fins go), so that one stays at full resolution.
+HALF_RES_FACE_RATIO = 32
+#: The level meshed on the box-averaged field: a binary field's average crosses 0.5 on the boundary between
+#: its voxels (``ISO_LEVEL`` 0.4 would put a wall up to 0.4 fine voxel outside it, and the re-voxelized mesh
+#: into the next coarse cell: Strict-IOU 0.947 against 0.966 on castle_word); just below 0.5, so that a
+#: box half full is never exactly on the level (degenerate triangles). On a continuous field (the learned
+#: model's) the surface moves inward by the distance between its ``ISO_LEVEL`` and 0.5 levels (~0.3 voxel).
+HALF_RES_LEVEL = 0.499
+
 
 def coarse_surface_faces(occupancy: np.ndarray) -> np.ndarray:
     """(X, Y, Z) int64: per occupied coarse cell, how many of its six faces touch an empty cell (or the border)."""
@@ -67,6 +82,21 @@ def coarse_surface_faces(occupancy: np.ndarray) -> np.ndarray:
         for step in (-1, 1):
             faces += ~np.roll(padded, step, axis=axis)[1:-1, 1:-1, 1:-1] & occupancy
     return faces
+
+
+def mesh_sample_step(resolution: MeshResolution | str, budget: int | None, occupancy: np.ndarray | None) -> int:
+    """Fine voxels per marching-cubes sample along each axis: 1 (full resolution) or 2 (half).
+
+    ``auto`` is half when the asset has a budget and ``FULL_RES_FACES_PER_COARSE_FACE`` × its coarse grid's
+    exposed faces ≥ ``HALF_RES_FACE_RATIO`` × the budget; full without a budget or a coarse grid.
+    """
+    resolution = MeshResolution(resolution)
+    if resolution is not MeshResolution.AUTO:
+        return 2 if resolution is MeshResolution.HALF else 1
+    if budget is None or occupancy is None:
+        return 1
+    faces = FULL_RES_FACES_PER_COARSE_FACE * int(coarse_surface_faces(np.asarray(occupancy, dtype=bool)).sum())
+    return 2 if faces >= HALF_RES_FACE_RATIO * budget else 1
 
 
 def triangle_budget(max_triangles: int | str | None, use: AssetUse, occupancy: np.ndarray) -> int | None:
@@ -91,12 +121,15 @@ class MeshSettings:
         vertex_colors: colour vertices by style (palette.py); off = no colours.
         taubin_max_shift: no vertex moves farther than this (fine voxels, per axis) from where marching
             cubes put it while smoothing (``taubin_smooth``); None = unbounded.
+        sample_step: fine voxels per marching-cubes sample along each axis: 1 = full resolution, 2 = the
+            field box-averaged 2×2×2 first (``box_average``; ``mesh_sample_step`` chooses for a recipe).
     """
 
     taubin_iterations: int = 0
     max_triangles: int | None = 150_000
     vertex_colors: bool = True
     taubin_max_shift: float | None = None
+    sample_step: int = 1
 
     def __post_init__(self) -> None:
         if self.taubin_iterations < 0:
@@ -105,6 +138,8 @@ class MeshSettings:
             raise ValueError("max_triangles must be >= 4 (a tetrahedron) or None")
         if self.taubin_max_shift is not None and not self.taubin_max_shift > 0:
             raise ValueError("taubin_max_shift must be > 0 or None")
+        if self.sample_step not in (1, 2):
+            raise ValueError("sample_step must be 1 or 2")
 
     @classmethod
     def from_export(cls, export: "ExportSettings", occupancy: np.ndarray | None = None) -> "MeshSettings":
@@ -119,6 +154,7 @@ class MeshSettings:
             max_triangles=budget,
             vertex_colors=export.vertex_colors,
             taubin_max_shift=export.taubin_max_shift_voxels,
+            sample_step=mesh_sample_step(export.mesh_resolution, budget, occupancy),
         )
 
 
@@ -164,7 +200,8 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
     """The surface of one block of a fine field: marching cubes, smoothing, decimation, colours.
 
     Args:
-        occupancy: (X, Y, Z) float32 fine field of the block.
+        occupancy: (X, Y, Z) float32 fine field of the block; with an open high side, X includes the next
+            block's first ``settings.sample_step`` columns.
         style: (X, Y, Z) int16 style per fine voxel (as ``FineGrid.style``), or None without colours.
         max_triangles: this block's share of the triangle budget; None = no decimation.
         x_offset: the block's first fine column in the whole grid (added to vertex x).
@@ -174,14 +211,20 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
     Returns:
         the ``Piece``, or None when the block holds no voxel at or above ``iso``.
     """
-    cropped = crop_padded(occupancy, iso, open_x)
+    step = settings.sample_step
+    samples = box_average(occupancy, step)
+    level = iso if step == 1 else max(iso, HALF_RES_LEVEL)
+    cropped = crop_padded(samples, level, open_x)
     if cropped is None:
         return None
     volume, start = cropped
-    verts, faces = marching_cubes(volume, iso)
+    verts, faces = marching_cubes(volume, level)
     del volume
     verts += start  # back to the block's sample indices
-    fixed = _open_side_vertices(verts, occupancy.shape[0], open_x)
+    fixed = _open_side_vertices(verts, samples.shape[0], open_x)
+    del samples
+    if step > 1:  # sample i averages fine voxels step·i … step·i + step − 1: its centre is step·i + (step − 1)/2
+        verts = verts * step + (step - 1) / 2
     if settings.taubin_iterations > 0:
         verts = taubin_smooth(verts, faces, settings.taubin_iterations, fixed, settings.taubin_max_shift)
     if max_triangles is not None and len(faces) > max_triangles:
@@ -192,6 +235,28 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
         local = verts - np.array([x_offset, 0.0, 0.0])
         colors = style_colors_at(local, vertex_normals(verts, faces), style, style_names)
     return Piece(verts, faces, colors)
+
+
+def box_average(field: np.ndarray, step: int) -> np.ndarray:
+    """(⌈X/step⌉, ⌈Y/step⌉, ⌈Z/step⌉) float32: the mean of each step³ box of ``field`` (zeros beyond it).
+
+    The ``step``³ values are added in one fixed order, element by element, so a sample's value depends on its
+    own box only (not on the block it was cut from): two blocks that share a plane of samples compute it bit
+    for bit alike, and their surfaces weld. ``step`` 1 returns ``field`` itself.
+    """
+    if step == 1:
+        return field
+    pad = [(0, -n % step) for n in field.shape]
+    if any(b for _, b in pad):
+        field = np.pad(field, pad)
+    total = None
+    for i in range(step):
+        for j in range(step):
+            for k in range(step):
+                part = field[i::step, j::step, k::step]
+                total = part.astype(np.float32, copy=True) if total is None else np.add(total, part, out=total)
+    total *= np.float32(1.0 / step**3)
+    return total
 
 
 def _open_side_vertices(verts: np.ndarray, n_x: int, open_x: tuple[bool, bool]) -> np.ndarray | None:
@@ -228,6 +293,9 @@ def to_trimesh(pieces: list[Piece], origin_m, voxel_size_m: float, colors: bool)
         faces = inverse.reshape(-1)[faces]
         rgba = rgba[first] if rgba is not None else None
         faces = drop_coincident_faces(faces)
+        source, faces = split_pinches(faces, len(verts))  # the weld merged the pieces' own pinch copies
+        verts = verts[source]
+        rgba = rgba[source] if rgba is not None else None
     origin = np.asarray(origin_m, dtype=np.float64)
     verts_m = origin + (verts + 0.5) * float(voxel_size_m)
     mesh = trimesh.Trimesh(verts_m, faces, vertex_colors=rgba, process=False, validate=False)
@@ -311,89 +379,32 @@ def taubin_smooth(verts: np.ndarray, faces: np.ndarray, iterations: int, fixed: 
     a, b = faces.T.astype(np.int32), np.roll(faces, -1, axis=1).T.astype(np.int32)
     rows, cols = np.concatenate([a.ravel(), b.ravel()]), np.concatenate([b.ravel(), a.ravel()])
     adjacency = sparse.csr_matrix((np.ones(len(rows), dtype=np.float32), (rows, cols)), shape=(n, n))
-    adjacency.sum_duplicates()
-    adjacency.data[:] = 1.0  # each neighbour once, however many faces share the edge
-    degree = np.diff(adjacency.indptr).astype(np.float32)
-    inv_degree = (np.where(degree > 0, 1.0 / np.maximum(degree, 1), 0.0)[:, None]).astype(np.float32)
+    adjacency.data[:] = 1.0  # each neighbour once, however many faces share the edge (duplicates are summed)
+    degree = np.diff(adjacency.indptr)
+    # the averaging matrix (row i: 1/degree at i's neighbours), so that a step is out += w·(A·out − out)
+    scale = np.where(degree > 0, 1.0 / np.maximum(degree, 1), 0.0).astype(np.float32)
+    adjacency.data *= np.repeat(scale, degree)
     start = np.asarray(verts, dtype=np.float64)
     out = start.astype(np.float32)
-    movable = np.ones((n, 1), np.float32) if fixed is None else (~fixed)[:, None].astype(np.float32)
+    lo = hi = None
+    if max_shift is not None:
+        lo, hi = (start - max_shift).astype(np.float32), (start + max_shift).astype(np.float32)
+    steps = [np.float32(_TAUBIN_LAMBDA), np.float32(-_TAUBIN_MU)]
+    if fixed is not None:
+        movable = (~fixed)[:, None].astype(np.float32)
+        steps = [w * movable for w in steps]
     for _ in range(iterations):
-        for weight in (_TAUBIN_LAMBDA, -_TAUBIN_MU):
-            out += np.float32(weight) * movable * (adjacency @ out * inv_degree - out)
-        if max_shift is not None:
-            np.clip(out, start - max_shift, start + max_shift, out=out)
+        for weight in steps:
+            delta = adjacency @ out
+            delta -= out
+            delta *= weight
+            out += delta
+        if lo is not None:
+            np.clip(out, lo, hi, out=out)
     result = out.astype(np.float64)
     if fixed is not None:
         result[fixed] = start[fixed]  # bit for bit: the neighbouring block welds to these
     return result
-
-
-def decimate(verts: np.ndarray, faces: np.ndarray, target: int,
-             lock_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Quadric decimation (meshoptimizer) to at most ``target`` faces (voxel units in, voxel units out).
-
-    See ``decimate_kept``; returns the kept (V', 3) vertices and the (F', 3) faces into them.
-    """
-    kept, out_f = decimate_kept(verts, faces, target, lock_border)
-    return np.asarray(verts, dtype=np.float64)[kept], out_f
-
-
-def decimate_kept(verts: np.ndarray, faces: np.ndarray, target: int,
-                  lock_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Quadric decimation to at most ``target`` faces: (V',) indices of the input vertices kept, in input
-    order, and (F', 3) int64 faces into that subset (so vertex attributes follow by indexing).
-
-    The simplifier keeps the mesh's topology; ``lock_border`` keeps every vertex on an open
-    boundary where it is (a block's side that another block continues).
-
-    Raises:
-        MeshingError: the simplifier failed, could not reach ``target``, or left nothing.
-    """
-    import meshoptimizer
-
-    indices = np.ascontiguousarray(faces, dtype=np.uint32).reshape(-1)
-    out = np.empty_like(indices)
-    options = meshoptimizer.SIMPLIFY_LOCK_BORDER if lock_border else 0
-    try:
-        count = meshoptimizer.simplify(out, indices, np.ascontiguousarray(verts, dtype=np.float32),
-                                       target_index_count=3 * target, target_error=DECIMATE_MAX_ERROR,
-                                       options=options)
-    except (ValueError, RuntimeError) as exc:
-        raise MeshingError(f"decimation failed: {exc}", field="export.max_triangles",
-                           hint="set export.max_triangles: null to skip it") from None
-    out_f = drop_coincident_faces(out[:count].reshape(-1, 3).astype(np.int64))
-    if len(out_f) > target:
-        raise MeshingError(
-            f"could not decimate below {len(out_f)} triangles (max_triangles is {target})",
-            field="export.max_triangles", hint="raise export.max_triangles or set it to null",
-        )
-    if len(out_f) == 0:
-        raise MeshingError(f"decimation to {target} triangles left nothing", field="export.max_triangles",
-                           hint="raise export.max_triangles")
-    kept, inverse = np.unique(out_f, return_inverse=True)
-    return kept, inverse.reshape(-1, 3).astype(np.int64)
-
-
-def drop_coincident_faces(faces: np.ndarray) -> np.ndarray:
-    """(F', 3) faces without degenerate faces and without faces that share all three vertices.
-
-    Strong decimation occasionally folds a thin spot into two back-to-back
-    triangles on the same three vertices (a zero-volume fin); their edges are
-    then used four times and the mesh is no longer watertight. Removing every
-    copy of such a triangle restores a closed 2-manifold.
-    """
-    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
-    if len(faces) == 0:
-        return faces
-    key = np.sort(faces, axis=1)
-    if int(key[:, 2].max()) < (1 << 21):
-        # One int64 per triangle: a 1-D unique is several times faster than axis=0.
-        key = (key[:, 0] << 42) | (key[:, 1] << 21) | key[:, 2]
-        _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    else:
-        _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return faces[counts[inverse.ravel()] == 1]
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:

@@ -14,7 +14,8 @@ beside the GLB (written with the asset's other files, all or nothing).
 - **fine**: the detailizer's grid binarised at ``ISO_LEVEL``, downsampled by the
   smallest integer factor that brings every side to ≤ 256 (a block is filled when
   at least half its fine voxels are), one palette index per style (the style at
-  each block's first voxel: styles are constant over a coarse cell).
+  each block's first voxel: styles are constant over a coarse cell). Built block by
+  block (``FineVox``), so long assets detailized in blocks get one too.
 
 Files are in MagicaVoxel's frame: the canonical grid (+Y up, front +Z) turned
 back by the inverse of the ``vox`` source's ``up_axis: z`` rotation.
@@ -25,7 +26,6 @@ from __future__ import annotations
 import numpy as np
 
 from core.errors import ExportError
-from pipeline.chunks import WHOLE_MAX_CELLS
 from core.grid import ISO_LEVEL, FineGrid, LabeledGrid
 from core.recipe import UpAxis, VoxExport
 from pipeline.palette import palette_rgba
@@ -84,48 +84,75 @@ def coarse_vox(grid: LabeledGrid) -> tuple[bytes, dict]:
     return data, record
 
 
+class FineVox:
+    """The fine ``.vox`` of a detailed grid, built block by block along x (``add``), so that an asset
+    detailized in blocks (``pipeline/chunks.py``: its whole fine grid never exists) gets one too.
+
+    The grid is downsampled by ``factor``, the smallest integer that brings every side to ≤ 256: a cell is
+    filled when at least half of its factor³ fine voxels are solid (beyond the grid counts as empty), and
+    takes the style of its first fine voxel. Holds the downsampled grid only (≤ 256³ counts).
+    """
+
+    def __init__(self, fine_shape: tuple[int, int, int], style_names: tuple[str, ...]) -> None:
+        if len(style_names) > 255:
+            raise ExportError(f"the asset has {len(style_names)} styles; a .vox palette holds 255",
+                              field="export.vox", hint="use vox: [coarse], or fewer styles")
+        self.factor = max(1, -(-max(fine_shape) // MAX_SIDE))
+        self.fine_shape = tuple(int(n) for n in fine_shape)
+        self.style_names = tuple(style_names)
+        shape = tuple(-(-n // self.factor) for n in self.fine_shape)
+        self.counts = np.zeros(shape, dtype=np.int32)
+        self.style = np.zeros(shape, dtype=np.int16)
+
+    def add(self, x0: int, occupancy: np.ndarray, style: np.ndarray) -> None:
+        """Fine columns ``x0 …`` of the grid: (W, Y, Z) float32 occupancy and int16 style (any order of blocks,
+        each column once)."""
+        f = self.factor
+        solid = occupancy >= ISO_LEVEL
+        lead = x0 % f  # the block's first column sits this far into its downsampled cell
+        cells = -(-(lead + solid.shape[0]) // f)
+        y, z = self.counts.shape[1], self.counts.shape[2]
+        padded = np.zeros((cells * f, y * f, z * f), dtype=bool)
+        padded[lead:lead + solid.shape[0], :solid.shape[1], :solid.shape[2]] = solid
+        first = x0 // f
+        self.counts[first:first + cells] += padded.reshape(cells, f, y, f, z, f).sum(axis=(1, 3, 5),
+                                                                                         dtype=np.int32)
+        own = -(-x0 // f)  # the first downsampled cell whose first column is in this block
+        sampled = style[own * f - x0::f, ::f, ::f]
+        self.style[own:own + len(sampled)] = sampled
+
+    def encode(self) -> tuple[bytes, dict]:
+        """(file bytes, manifest record) once every column was added."""
+        filled = 2 * self.counts >= self.factor ** 3
+        palette = np.zeros((256, 4), dtype=np.uint8)
+        n = len(self.style_names)
+        palette[1:n + 1] = palette_rgba(self.style_names)[:n]
+        labels = np.where(filled, np.clip(self.style, 0, max(n - 1, 0)) + 1, 0).astype(np.uint8)
+        labels = to_file_frame(labels)
+        data = write_vox([labels], palette)
+        record = {"downsample": self.factor, "shape": list(labels.shape), "up_axis": FILE_UP.value,
+                  "palette": {str(i + 1): name for i, name in enumerate(self.style_names)}}
+        return data, record
+
+
 def fine_vox(fine: FineGrid) -> tuple[bytes, dict]:
-    """(file bytes, manifest record) of a detailed grid, downsampled to ≤ 256 per side; see the module docstring."""
-    solid = fine.binary(ISO_LEVEL)
-    factor = max(1, -(-max(solid.shape) // MAX_SIDE))
-    if factor > 1:
-        shape = tuple(-(-n // factor) * factor for n in solid.shape)
-        padded = np.zeros(shape, dtype=bool)
-        padded[tuple(slice(0, n) for n in solid.shape)] = solid
-        x, y, z = (n // factor for n in shape)
-        filled = padded.reshape(x, factor, y, factor, z, factor).mean(axis=(1, 3, 5)) >= 0.5
-        style = fine.style[::factor, ::factor, ::factor]
-    else:
-        filled, style = solid, fine.style
-    if len(fine.style_names) > 255:
-        raise ExportError(f"the asset has {len(fine.style_names)} styles; a .vox palette holds 255")
-    palette = np.zeros((256, 4), dtype=np.uint8)
-    n = len(fine.style_names)
-    palette[1:n + 1] = palette_rgba(fine.style_names)[:n]
-    labels = np.where(filled, np.clip(style, 0, max(n - 1, 0)) + 1, 0).astype(np.uint8)
-    labels = to_file_frame(labels)
-    data = write_vox([labels], palette)
-    record = {"downsample": factor, "shape": list(labels.shape), "up_axis": FILE_UP.value,
-              "palette": {str(i + 1): name for i, name in enumerate(fine.style_names)}}
-    return data, record
+    """(file bytes, manifest record) of a whole detailed grid (``FineVox`` with one block)."""
+    writer = FineVox(fine.shape, fine.style_names)
+    writer.add(0, fine.occupancy, fine.style)
+    return writer.encode()
 
 
-def vox_files(kinds, grid: LabeledGrid, fine: FineGrid | None, stem: str) -> tuple[list[tuple], dict]:
+def vox_files(kinds, grid: LabeledGrid, fine: FineVox | None, stem: str) -> tuple[list[tuple], dict]:
     """The export jobs ``(kind, file name, () → bytes)`` and the manifest's ``vox`` record for ``export.vox``.
 
-    The bytes are made here (the records need them); the jobs hand them over. ``fine`` is None for an
-    asset detailized block by block (``pipeline/chunks.py``): its whole fine grid never existed.
-
-    Raises:
-        ExportError: a ``fine`` export asked for such an asset.
+    The bytes are made here (the records need them); the jobs hand them over. ``fine`` holds the detailed
+    grid's blocks (``FineVox``; needed when ``kinds`` has ``fine``).
     """
     jobs, record = [], {}
     for kind in (VoxExport(k) for k in kinds):
         if kind == VoxExport.FINE and fine is None:
-            raise ExportError(f"a fine .vox is not written for an asset longer than {WHOLE_MAX_CELLS} coarse "
-                              "cells along x (it is detailized block by block)", field="export.vox",
-                              hint="use vox: [coarse], or shorten the asset")
-        data, info = coarse_vox(grid) if kind == VoxExport.COARSE else fine_vox(fine)
+            raise ValueError("a fine .vox needs the FineVox the blocks were added to")
+        data, info = coarse_vox(grid) if kind == VoxExport.COARSE else fine.encode()
         jobs.append((f"vox_{kind.value}", f"{stem}.{kind.value}.vox", lambda data=data: data))
         record[kind.value] = info
     return jobs, record

@@ -4,10 +4,11 @@ Role: after assembly, make the binarised output (field ≥ ISO_LEVEL) one
 6-connected body per 6-connected component of the coarse content, touching
 every occupied coarse cell, while changing as little as possible.
 
-Components are found without labelling the whole fine grid (a long word's
-output has ~10⁸ voxels): each occupied cell's block is labelled on its own
-(16³), blocks are joined where their voxels touch across a shared face, and
-the graph's connected components are the fine components
+Components are found without labelling the whole fine grid (a 64-column
+grid's output has ~10⁸ voxels): each occupied cell's block is labelled on its
+own (16³; ``BATCH_CELLS`` blocks per ``ndimage.label`` call, stacked with an
+empty layer between them), blocks are joined where their voxels touch across
+a shared face, and the graph's connected components are the fine components
 (``scipy.sparse.csgraph``). Per coarse component the largest fine component
 is the *main body*. Then:
 
@@ -41,9 +42,6 @@ from scipy.sparse.csgraph import connected_components
 from core.grid import ISO_LEVEL
 from model.quilt.library import CELL, DIRS
 
-_FULL_LABEL = np.ones((CELL, CELL, CELL), dtype=np.int32)
-_FULL_SIZE = np.array([CELL**3])
-_FULL_FACES = {d: np.ones((CELL, CELL), dtype=np.int32) for d in range(6)}
 #: Tube radius of a bridge, fine voxels.
 TUBE_RADIUS = 2.5
 _SIX = ndimage.generate_binary_structure(3, 1)
@@ -75,83 +73,95 @@ def _block(fine: np.ndarray, cell: np.ndarray) -> np.ndarray:
     return fine[i:i + CELL, j:j + CELL, k:k + CELL]
 
 
-_FACE_INDEX = [(0,), (-1,), (slice(None), 0), (slice(None), -1), (Ellipsis, 0), (Ellipsis, -1)]
+#: Occupied cells whose blocks are labelled in one ``ndimage.label`` call (``fine_components``): bounds the
+#: label array (BATCH_CELLS × 17 × 16² int32 ≈ 4.5 MB).
+BATCH_CELLS = 256
 
 
-def _face(a: np.ndarray, d: int) -> np.ndarray:
-    """The layer of a (CELL³) array on face d (−x, +x, −y, +y, −z, +z), copied (a view would keep the
-    whole label array of every cell alive: ~280 MB on a long word)."""
-    return a[_FACE_INDEX[d]].copy()
+def block_labels(fine: np.ndarray, cells: np.ndarray, empty: bool = False) -> tuple[np.ndarray, int]:
+    """6-connected components of the blocks of ``cells`` (n, 3), each block labelled on its own.
+
+    Returns (n, CELL, CELL, CELL) int32 labels and how many components there are: 0 outside the mask
+    (voxels ≥ ``ISO_LEVEL``, or < it with ``empty``), else 1 + the component's index, numbered block after
+    block and, within a block, in raster order, as ``ndimage.label`` numbers one block alone. A block wholly
+    in the mask is one component; the others are stacked with an empty layer between them, so one call
+    labels them all without joining any two.
+    """
+    n = len(cells)
+    blocks = fine.reshape(fine.shape[0] // CELL, CELL, fine.shape[1] // CELL, CELL, fine.shape[2] // CELL, CELL)
+    blocks = blocks[cells[:, 0], :, cells[:, 1], :, cells[:, 2], :]  # (n, CELL, CELL, CELL), axes as in the grid
+    mask = blocks < ISO_LEVEL if empty else blocks >= ISO_LEVEL
+    flat = mask.reshape(n, -1)
+    full, some = flat.all(axis=1), flat.any(axis=1)
+    mixed = np.flatnonzero(some & ~full)
+    stack = np.zeros((len(mixed), CELL + 1, CELL, CELL), dtype=bool)
+    stack[:, :CELL] = mask[mixed]
+    stacked, _ = ndimage.label(stack.reshape(-1, CELL, CELL), structure=_SIX, output=np.int32)
+    stacked = stacked.reshape(len(mixed), CELL + 1, CELL, CELL)[:, :CELL]
+    # per block: how many components, and the stacked labels' first one (they rise block after block)
+    count = full.astype(np.int64)
+    top = stacked.reshape(len(mixed), CELL**3).max(axis=1, initial=0).astype(np.int64)
+    first = np.concatenate([[0], top[:-1]])
+    count[mixed] = top - first
+    offset = np.concatenate([[0], np.cumsum(count)[:-1]])
+    labels = np.zeros((n, CELL, CELL, CELL), dtype=np.int32)
+    labels[full] = (offset[full] + 1).astype(np.int32)[:, None, None, None]
+    shift = (offset[mixed] - first).astype(np.int32)[:, None, None, None]
+    labels[mixed] = np.where(stacked > 0, stacked + shift, 0)
+    return labels, int(count.sum())
 
 
-def fine_components(fine: np.ndarray, content: Cells, empty: bool = False, cache: dict | None = None):
+_FACE_INDEX = [(slice(None), 0), (slice(None), -1), (slice(None), slice(None), 0), (slice(None), slice(None), -1),
+               (Ellipsis, 0), (Ellipsis, -1)]
+
+
+def fine_components(fine: np.ndarray, content: Cells, empty: bool = False):
     """(node offsets per cell, node sizes, node → component id, n components) of the binarised output.
 
-    Node ``offsets[q] + l - 1`` is local component l of cell q's block (6-connected). With
-    ``empty`` the components are those of the empty voxels inside occupied cells, and one more
-    node (the last, id ``offsets[-1]``) stands for the outside: every local component that
-    touches a face whose coarse neighbour is empty or beyond the grid is joined to it.
-    ``cache`` (cell → its local labelling) is filled and reused: a repair round drops the cells it
-    changed, so later rounds relabel only those.
+    Node ``offsets[q] + l - 1`` is local component l of cell q's block (6-connected, ``block_labels``). With
+    ``empty`` the components are those of the empty voxels inside occupied cells, and one more node (the
+    last, id ``offsets[-1]``) stands for the outside: every local component that touches a face whose coarse
+    neighbour is empty or beyond the grid is joined to it. Blocks are labelled ``BATCH_CELLS`` at a time;
+    only their six face layers are kept (as node ids + 1).
     """
     n = len(content)
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    faces: list[dict[int, np.ndarray]] = []
+    faces = np.zeros((n, 6, CELL, CELL), dtype=np.int32)
+    per_cell = np.zeros(n, dtype=np.int64)
     sizes = []
-    cache = {} if cache is None else cache
-    for q, cell in enumerate(content.cells):
-        if q in cache:
-            m, size_q, faces_q = cache[q]
-            offsets[q + 1] = offsets[q] + m
-            if m:
-                sizes.append(size_q)
-            faces.append(faces_q)
-            continue
-        block = _block(fine, cell)
-        lo, hi = block.min(), block.max()
-        if (lo >= ISO_LEVEL) != empty and (hi >= ISO_LEVEL) != empty:  # all one component: no labelling
-            lab, m = _FULL_LABEL, 1
-        elif (lo >= ISO_LEVEL) == empty and (hi >= ISO_LEVEL) == empty:  # none
-            lab, m = None, 0
-        else:
-            lab, m = ndimage.label(block < ISO_LEVEL if empty else block >= ISO_LEVEL, structure=_SIX)
-        offsets[q + 1] = offsets[q] + m
-        if lab is _FULL_LABEL:
-            size_q, faces_q = _FULL_SIZE, _FULL_FACES
-        elif m:
-            small = np.uint8 if m < 255 else np.int32  # kept for every cell: the smallest type that fits
-            size_q = np.bincount(lab.reshape(-1), minlength=m + 1)[1:]
-            faces_q = {d: _face(lab, d).astype(small, copy=False) for d in range(6)}
-        else:
-            size_q, faces_q = None, {}
-        if m:
-            sizes.append(size_q)
-        faces.append(faces_q)
-        cache[q] = (m, size_q, faces_q)
-    total = int(offsets[-1])
-    rows, cols = [], []
-    for q in range(n):
-        if not faces[q]:
-            continue
+    total = 0
+    for a in range(0, n, BATCH_CELLS):
+        labels, count = block_labels(fine, content.cells[a:a + BATCH_CELLS], empty)
+        shifted = np.where(labels > 0, labels + np.int32(total), 0) if total else labels
         for d in range(6):
-            r = content.nb[q, d]
-            a = faces[q][d]
-            if r < 0:
-                if empty:  # open face: its empty voxels are outside
-                    hit = np.unique(a[a > 0])
-                    rows.append(offsets[q] - 1 + hit)
-                    cols.append(np.full(len(hit), total))
-                continue
-            if d % 2 == 0 or not faces[r]:
-                continue
-            b = faces[r][d ^ 1]
-            touch = (a > 0) & (b > 0)
-            if touch.any():  # repeated pairs are harmless: the graph only needs the edges
-                rows.append(offsets[q] - 1 + a[touch])
-                cols.append(offsets[r] - 1 + b[touch])
+            faces[a:a + BATCH_CELLS, d] = shifted[_FACE_INDEX[d]]
+        per_cell[a:a + BATCH_CELLS] = labels.reshape(len(labels), -1).max(axis=1)
+        sizes.append(np.bincount(labels.reshape(-1), minlength=count + 1)[1:])
+        total += count
+    # labels rise block after block: a cell's nodes end at the largest label seen up to it
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    if n:
+        batch_base = np.repeat(np.concatenate([[0], np.cumsum([len(s) for s in sizes])[:-1]]),
+                               [min(BATCH_CELLS, n - a) for a in range(0, n, BATCH_CELLS)])
+        ends = np.where(per_cell > 0, per_cell + batch_base, 0)
+        offsets[1:] = np.maximum.accumulate(ends)
+    rows, cols = [], []
+    for d in range(6):
+        r = content.nb[:, d]
+        if empty:  # open faces: their empty voxels are outside
+            a = faces[r < 0, d]
+            hit = np.unique(a[a > 0])
+            rows.append(hit - 1)
+            cols.append(np.full(len(hit), total))
+        if d % 2 == 0:
+            continue  # each pair of cells once, from its lower cell
+        q = np.flatnonzero(r >= 0)
+        a, b = faces[q, d], faces[r[q], d ^ 1]
+        touch = (a > 0) & (b > 0)
+        rows.append(a[touch] - 1)
+        cols.append(b[touch] - 1)
     size_n = total + (1 if empty else 0)
-    r_ = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
-    c_ = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
+    r_ = np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, dtype=np.int64)
+    c_ = np.concatenate(cols).astype(np.int64) if cols else np.zeros(0, dtype=np.int64)
     graph = coo_matrix((np.ones(len(r_)), (r_, c_)), shape=(size_n, size_n))
     n_comp, comp = connected_components(graph, directed=False) if size_n else (0, np.zeros(0, dtype=np.int64))
     size = np.concatenate(sizes) if total else np.zeros(0, dtype=np.int64)
@@ -174,11 +184,10 @@ def fill_cavities(fine: np.ndarray, content: Cells) -> int:
     return len(np.unique(comp[:total][enclosed]))
 
 
-def _tube(fine: np.ndarray, content: Cells, points: list[np.ndarray], radius: float = TUBE_RADIUS) -> set[int]:
+def _tube(fine: np.ndarray, content: Cells, points: list[np.ndarray], radius: float = TUBE_RADIUS) -> None:
     """Raise ``fine`` to a smooth tube profile along the polyline ``points`` (fine voxel coordinates),
-    only inside occupied coarse cells (a tube that ends at a cell face must not bulge into an empty one).
-    Returns the ids of the cells it may have changed."""
-    occ, touched = content.occ, set()
+    only inside occupied coarse cells (a tube that ends at a cell face must not bulge into an empty one)."""
+    occ = content.occ
     for a, b in zip(points[:-1], points[1:]):
         a, b = a.astype(np.float64), b.astype(np.float64)
         lo = np.maximum(np.floor(np.minimum(a, b) - radius - 1).astype(int), 0)
@@ -190,11 +199,8 @@ def _tube(fine: np.ndarray, content: Cells, points: list[np.ndarray], radius: fl
         value = np.clip(radius + 0.5 - dist, 0.0, 1.0).astype(np.float32)
         cell = [np.arange(l, h) // CELL for l, h in zip(lo, hi)]
         value *= occ[np.ix_(*cell)]
-        box = content.ids[tuple(slice(c[0], c[-1] + 1) for c in cell)]
-        touched.update(int(i) for i in box[box >= 0])
         region = fine[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
         np.maximum(region, value, out=region)
-    return touched
 
 
 def _nearest_voxel(mask: np.ndarray, cell: np.ndarray) -> np.ndarray:
@@ -216,23 +222,20 @@ def repair(fine: np.ndarray, occ: np.ndarray) -> dict:
     coarse_lab, n_coarse = ndimage.label(occ, structure=_SIX)
     cell_comp = coarse_lab[tuple(content.cells.T)]
     removed = tubes = 0
-    cache: dict = {}
     for _ in range(ROUNDS):
-        offsets, size, comp, n_comp = fine_components(fine, content, cache=cache)
+        offsets, size, comp, n_comp = fine_components(fine, content)
         if n_comp <= n_coarse:
             break
-        r, t, changed = _repair_round(fine, content, cell_comp, offsets, size, comp)
+        r, t = _repair_round(fine, content, cell_comp, offsets, size, comp)
         removed, tubes = removed + r, tubes + t
         if t == 0:
             break  # removing whole fragments cannot split what is left: one body per coarse component
-        for q in changed:
-            cache.pop(q, None)
     return {"fragments_removed": removed, "bridges": tubes, "cavities_filled": fill_cavities(fine, content)}
 
 
-def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, int, set[int]]:
+def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, int]:
     """One round: remove fragments whose cells all hold main material, bridge cells that hold none.
-    Returns (fragments removed, tubes, the cells whose voxels changed)."""
+    Returns (fragments removed, tubes)."""
     node_cell = np.repeat(np.arange(len(content)), np.diff(offsets))
     # main fine component per coarse component: the largest by voxels
     main_of = {}
@@ -254,9 +257,7 @@ def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, i
         frag_cells.setdefault(int(comp[i]), set()).add(int(node_cell[i]))
     removable = {c for c, cells in frag_cells.items() if all(has_main[q] for q in cells)}
     removed = 0
-    changed: set[int] = set()
     for q in sorted({q for c in removable for q in frag_cells[c]}):
-        changed.add(q)
         block = _block(fine, content.cells[q])
         lab, _ = ndimage.label(block >= ISO_LEVEL, structure=_SIX)
         nodes = offsets[q] + np.arange(offsets[q + 1] - offsets[q])
@@ -279,10 +280,10 @@ def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, i
         last = content.cells[path[-1]]
         main_mask = _main_mask(fine, content, offsets, node_main, path[-1])
         end = [_nearest_voxel(main_mask, last)] if main_mask.any() else []  # else a tube's cell: its centre
-        changed |= _tube(fine, content, start + centres + end)
+        _tube(fine, content, start + centres + end)
         has_main[path[:-1]] = True
         tubes += 1
-    return removed, tubes, changed
+    return removed, tubes
 
 
 def _main_mask(fine, content, offsets, node_main, q) -> np.ndarray:

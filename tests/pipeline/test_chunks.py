@@ -51,9 +51,10 @@ def test_plan_covers_the_columns_once_with_a_halo(small_blocks):
     assert chunks.detail_shape((40, 4, 3)) == (16, 4, 3)
 
 
-def test_blocks_join_into_the_same_closed_mesh_as_the_whole_grid(small_blocks, monkeypatch):
+@pytest.mark.parametrize("step", [1, 2])
+def test_blocks_join_into_the_same_closed_mesh_as_the_whole_grid(small_blocks, monkeypatch, step):
     grid = bar_grid()
-    settings = MeshSettings(max_triangles=None)
+    settings = MeshSettings(max_triangles=None, sample_step=step)
     parts = detailize_and_mesh(grid, local_detailizer, settings)
     monkeypatch.setattr(chunks, "WHOLE_MAX_CELLS", 1000)
     whole = detailize_and_mesh(grid, local_detailizer, settings)
@@ -72,10 +73,11 @@ def test_blocks_join_into_the_same_closed_mesh_as_the_whole_grid(small_blocks, m
     assert len(colours) == 2
 
 
-@pytest.mark.parametrize("taubin", [0, 3])
-def test_decimated_and_smoothed_blocks_stay_closed_within_the_budget(small_blocks, taubin):
+@pytest.mark.parametrize("taubin,step", [(0, 1), (3, 1), (3, 2)])
+def test_decimated_and_smoothed_blocks_stay_closed_within_the_budget(small_blocks, taubin, step):
     grid = bar_grid()
-    result = detailize_and_mesh(grid, local_detailizer, MeshSettings(max_triangles=6000, taubin_iterations=taubin))
+    result = detailize_and_mesh(grid, local_detailizer, MeshSettings(max_triangles=6000, taubin_iterations=taubin,
+                                                                     sample_step=step))
     assert result.mesh.is_watertight and result.mesh.volume > 0
     assert 0.8 * 6000 <= len(result.mesh.faces) <= 6000
 

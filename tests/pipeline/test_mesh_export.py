@@ -23,9 +23,18 @@ from core.errors import ExportError, MeshingError
 from pipeline.export import apply_pivot, export_asset, export_mesh, mesh_stats, pivot_translation
 from core.files import ensure_writable_dir, write_bytes_atomic
 from core.grid import FineGrid
-from pipeline.mesh import MeshSettings, drop_coincident_faces, mesh_fine_grid, signed_volume
+from pipeline.mesh import (
+    FULL_RES_FACES_PER_COARSE_FACE,
+    HALF_RES_FACE_RATIO,
+    MeshSettings,
+    box_average,
+    mesh_fine_grid,
+    mesh_sample_step,
+    signed_volume,
+)
+from pipeline.simplify import drop_coincident_faces, split_pinches
 from pipeline.palette import NEUTRAL_RGBA, PALETTE, palette_rgba, style_color
-from core.recipe import ExportFormat, ExportSettings, Pivot
+from core.recipe import ExportFormat, ExportSettings, MeshResolution, Pivot
 
 VOXEL = 0.01
 ORIGIN = (-0.3, 0.1, 0.2)
@@ -168,6 +177,94 @@ def test_taubin_smoothing_keeps_shape(sphere_grid, sphere_mesh):
     assert mesh.is_watertight
     assert mesh.volume == pytest.approx(sphere_mesh.volume, rel=0.02)
     assert not np.allclose(mesh.vertices, sphere_mesh.vertices)
+
+
+def test_half_resolution_meshes_the_same_sphere_with_a_quarter_of_the_triangles():
+    # a binary field, as the copying detailizer makes: the half-resolution level is set for those
+    inside = np.linalg.norm(voxel_centres((N, N, N)) - CENTRE, axis=-1) <= RADIUS
+    sphere_grid = fine_grid(inside.astype(np.float32))
+    sphere_mesh = mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=None))
+    half = mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=None, sample_step=2))
+    assert half.is_watertight
+    assert 0.15 < len(half.faces) / len(sphere_mesh.faces) < 0.35
+    # the same place: radius and centre within a fraction of a fine voxel (a half-sample offset bug is 0.5 voxel)
+    radius = np.linalg.norm(half.vertices - CENTRE, axis=1)
+    full_radius = np.linalg.norm(sphere_mesh.vertices - CENTRE, axis=1)
+    assert abs(radius.mean() - full_radius.mean()) < 0.25 * VOXEL
+    assert np.abs(half.bounds.mean(axis=0) - CENTRE).max() < 0.1 * VOXEL
+    assert half.volume == pytest.approx(sphere_mesh.volume, rel=0.03)
+
+
+def test_box_average_is_the_mean_of_each_box_and_pads_with_zeros():
+    rng = np.random.default_rng(0)
+    field = rng.random((6, 5, 4), dtype=np.float32)
+    out = box_average(field, 2)
+    assert out.shape == (3, 3, 2) and out.dtype == np.float32
+    assert out[1, 1, 1] == pytest.approx(field[2:4, 2:4, 2:4].mean(), abs=1e-6)
+    assert out[2, 2, 0] == pytest.approx(field[4:6, 4:5, 0:2].sum() / 8, abs=1e-6)  # the missing row counts 0
+    assert box_average(field, 1) is field
+    # a box's value does not depend on the array it was cut from (blocks that share a plane weld)
+    np.testing.assert_array_equal(box_average(field[2:], 2), out[1:])
+
+
+def test_auto_mesh_resolution_follows_the_budget():
+    bar = np.zeros((40, 3, 3), bool)
+    bar[:, 1, 1] = True  # 4 · 40 + 2 = 162 exposed coarse faces: about 83 000 full-resolution triangles
+    faces = FULL_RES_FACES_PER_COARSE_FACE * 162
+    assert mesh_sample_step(MeshResolution.AUTO, faces // HALF_RES_FACE_RATIO, bar) == 2
+    assert mesh_sample_step(MeshResolution.AUTO, faces // HALF_RES_FACE_RATIO + 1, bar) == 1
+    assert mesh_sample_step(MeshResolution.AUTO, None, bar) == 1  # no budget: nothing to lose
+    assert mesh_sample_step(MeshResolution.FULL, 10, bar) == 1
+    assert mesh_sample_step(MeshResolution.HALF, None, bar) == 2
+    assert MeshSettings.from_export(ExportSettings(max_triangles=100, mesh_resolution="auto"), bar).sample_step == 2
+    with pytest.raises(ValueError):
+        MeshSettings(sample_step=3)
+
+
+def _tetra(apex_y: float, offset: int) -> np.ndarray:
+    """Faces of an outward tetrahedron on the edge (0, 1) with its other corners at offset, offset + 1."""
+    faces = np.array([[0, 1, offset], [0, offset + 1, 1], [1, offset + 1, offset], [0, offset, offset + 1]])
+    return faces if apex_y > 0 else faces[:, ::-1]
+
+
+def test_a_pinch_along_an_edge_is_split_into_two_closed_sheets():
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0.2], [0.5, 0.3, 1], [0.5, -1, 0.2], [0.5, -0.3, -1]], float)
+    upper, lower = _tetra(1, 2), _tetra(-1, 4)
+    for tet in (upper, lower):  # wind both outward
+        if signed_volume(verts, tet) < 0:
+            tet[:] = tet[:, ::-1]
+    faces = np.concatenate([upper, lower])
+    assert not trimesh.Trimesh(verts, faces, process=False).is_watertight  # edge (0, 1) is in four faces
+    source, split = split_pinches(faces, len(verts))
+    mesh = trimesh.Trimesh(verts[source], split, process=False)
+    assert mesh.is_watertight and len(source) == 8 and (source[:6] == np.arange(6)).all()
+    assert mesh.volume == pytest.approx(signed_volume(verts, faces))
+    # a closed 2-manifold is returned as it was
+    same_source, same = split_pinches(upper, 6)
+    assert (same == upper).all() and (same_source == np.arange(6)).all()
+
+
+def test_splitting_pinches_of_decimated_meshes_never_opens_holes(sphere_grid, monkeypatch):
+    from pipeline import mesh as mesh_mod
+    from pipeline import simplify
+
+    rng = np.random.default_rng(5)
+    occupancy = np.asarray(sphere_grid.occupancy)
+    fixed = 0
+    for noise, target in ((0.2, 3000), (0.35, 3000), (0.35, 800)):
+        rough = (occupancy + rng.normal(0, noise, occupancy.shape) > 0.5).astype(np.float32)
+        volume, _ = mesh_mod.crop_padded(rough, 0.4)
+        verts, faces = mesh_mod.marching_cubes(volume, 0.4)
+        with monkeypatch.context() as patch:  # the simplifier's own output, pinches and all
+            patch.setattr(simplify, "split_pinches", lambda f, n: (np.arange(n), f))
+            kept, raw = simplify.decimate_kept(verts, faces, target)
+        source, split = split_pinches(raw, len(kept))
+        before = np.bincount(simplify.edge_groups(raw, len(kept))[2], minlength=8)
+        after = np.bincount(simplify.edge_groups(split, len(source))[2], minlength=8)
+        assert after[1] <= before[1] and after[3:].sum() <= before[3:].sum()  # no new holes, no new pinches
+        assert len(split) == len(raw) and (kept[source][:len(kept)] == kept).all()
+        fixed += before[3:].sum() - after[3:].sum()
+    assert fixed > 0
 
 
 def test_meshing_is_deterministic(sphere_grid):

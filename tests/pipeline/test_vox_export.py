@@ -93,3 +93,17 @@ def test_fine_grid_above_256_is_downsampled_to_fit():
     assert labels.shape == (160, 16, 24)
     assert (labels[:80] > 0).all() and (labels[80:] == 0).all()
     assert set(np.unique(labels[:80, :8])) == {1} and set(np.unique(labels[:80, 8:])) == {2}
+
+
+def test_a_fine_vox_built_block_by_block_is_the_whole_grids():
+    from pipeline.vox_export import FineVox
+
+    rng = np.random.default_rng(2)
+    fine = FineGrid((rng.random((16 * 40, 48, 32)) < 0.55).astype(np.float32),
+                    rng.integers(0, 3, (16 * 40, 48, 32)).astype(np.int16), ("cottage", "tower", "druse"), 0.01)
+    whole, record = fine_vox(fine)
+    assert record["downsample"] == 3  # 640 fine columns: blocks of 32 cells do not fall on its boundaries
+    writer = FineVox(fine.shape, fine.style_names)
+    for x0 in range(0, fine.shape[0], 16 * 12):
+        writer.add(x0, fine.occupancy[x0:x0 + 16 * 12], fine.style[x0:x0 + 16 * 12])
+    assert writer.encode() == (whole, record)

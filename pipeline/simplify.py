@@ -1,0 +1,170 @@
+"""Decimation: a closed triangle mesh down to a triangle budget, kept closed and 2-manifold.
+
+Quadric decimation by meshoptimizer's simplifier (``decimate_kept``), then two repairs of what strong
+decimation occasionally leaves: back-to-back triangles on the same three vertices (``drop_coincident_faces``)
+and two sheets brought together along an edge (``split_pinches``). Works in any length unit (the simplifier's
+error is relative to the mesh's extent); ``pipeline/mesh.py`` calls it in fine-voxel units, the LOD chain
+(``pipeline/engines.py``) in metres.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.errors import MeshingError
+
+#: Largest error meshoptimizer's simplifier may make, relative to the mesh's extent: high enough that the
+#: triangle count, not the error, decides where it stops (as with a ``max_triangles`` budget).
+DECIMATE_MAX_ERROR = 1.0
+
+
+def decimate(verts: np.ndarray, faces: np.ndarray, target: int,
+             lock_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric decimation (meshoptimizer) to at most ``target`` faces (voxel units in, voxel units out).
+
+    See ``decimate_kept``; returns the kept (V', 3) vertices and the (F', 3) faces into them.
+    """
+    kept, out_f = decimate_kept(verts, faces, target, lock_border)
+    return np.asarray(verts, dtype=np.float64)[kept], out_f
+
+
+def decimate_kept(verts: np.ndarray, faces: np.ndarray, target: int,
+                  lock_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric decimation to at most ``target`` faces: (V',) indices of the input vertices kept, in input
+    order, and (F', 3) int64 faces into that subset (so vertex attributes follow by indexing).
+
+    The simplifier keeps the mesh's topology; ``lock_border`` keeps every vertex on an open
+    boundary where it is (a block's side that another block continues).
+
+    Raises:
+        MeshingError: the simplifier failed, could not reach ``target``, or left nothing.
+    """
+    import meshoptimizer
+
+    indices = np.ascontiguousarray(faces, dtype=np.uint32).reshape(-1)
+    out = np.empty_like(indices)
+    options = meshoptimizer.SIMPLIFY_LOCK_BORDER if lock_border else 0
+    try:
+        count = meshoptimizer.simplify(out, indices, np.ascontiguousarray(verts, dtype=np.float32),
+                                       target_index_count=3 * target, target_error=DECIMATE_MAX_ERROR,
+                                       options=options)
+    except (ValueError, RuntimeError) as exc:
+        raise MeshingError(f"decimation failed: {exc}", field="export.max_triangles",
+                           hint="set export.max_triangles: null to skip it") from None
+    out_f = drop_coincident_faces(out[:count].reshape(-1, 3).astype(np.int64))
+    if len(out_f) > target:
+        raise MeshingError(
+            f"could not decimate below {len(out_f)} triangles (max_triangles is {target})",
+            field="export.max_triangles", hint="raise export.max_triangles or set it to null",
+        )
+    if len(out_f) == 0:
+        raise MeshingError(f"decimation to {target} triangles left nothing", field="export.max_triangles",
+                           hint="raise export.max_triangles")
+    kept, inverse = np.unique(out_f, return_inverse=True)
+    source, faces_out = split_pinches(inverse.reshape(-1, 3).astype(np.int64), len(kept))
+    return kept[source], faces_out
+
+
+def edge_groups(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Half-edges grouped by undirected edge: (order (3F,) half-edges sorted by edge, group starts, counts).
+    Half-edge c runs from corner c (``faces.reshape(-1)[c]``) to the next corner of its face."""
+    start = faces.reshape(-1)
+    corner = np.arange(len(start))
+    end = start[3 * (corner // 3) + (corner + 1) % 3]
+    key = np.minimum(start, end) * np.int64(n_vertices) + np.maximum(start, end)
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+    return order, starts, np.diff(np.r_[starts, len(key)])
+
+
+def split_pinches(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """Give each sheet of a pinch its own vertices, so that fewer edges are used by more than two faces.
+
+    Decimation sometimes brings two parts of a closed surface together along an edge (the edge then
+    belongs to four faces) or at a vertex: the mesh stays closed but is no longer a 2-manifold, and readers
+    that check (trimesh's ``is_watertight``, engines' collision cookers) refuse it. A vertex's faces are
+    grouped into fans, two faces being in one fan when they share an edge through the vertex that only they
+    use; the first fan keeps the vertex, each further fan gets a copy at the same position. Where the sheets
+    cross along the edge (one sheet's fans at its two ends hold different faces), splitting would open holes:
+    such an edge's faces stay joined. Geometry is unchanged, and no edge ends up in fewer than two faces.
+
+    Args:
+        faces: (F, 3) int64 vertex indices.
+        n_vertices: how many vertices the faces index.
+    Returns:
+        (V',) int64 the original vertex of each output vertex (the first ``n_vertices`` are the identity,
+        copies come after them) and (F, 3) the faces into the output vertices.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    unchanged = np.arange(n_vertices), faces
+    if len(faces) == 0:
+        return unchanged
+    order, starts, counts = edge_groups(faces, n_vertices)
+    if (counts == 2).all():
+        return unchanged  # every edge in two faces: nothing pinched along an edge
+    start = faces.reshape(-1)
+    corner = np.arange(len(start))
+    nxt = 3 * (corner // 3) + (corner + 1) % 3
+    # an edge used by exactly two faces joins, for each of its two vertices, the corners holding it in them
+    # (half-edge c runs from corner c to corner nxt[c])
+    e1, e2 = order[starts[counts == 2]], order[starts[counts == 2] + 1]
+    flipped = start[e1] == start[e2]  # the two faces wind the edge the same way (not outward-consistent)
+    rows = [e1, nxt[e1]]
+    cols = [np.where(flipped, e2, nxt[e2]), np.where(flipped, nxt[e2], e2)]
+    group_of = np.empty(len(start), dtype=np.int64)  # half-edge → its edge's group
+    group_of[order] = np.repeat(np.arange(len(starts)), counts)
+    for _ in range(8):
+        graph = coo_matrix((np.ones(sum(len(r) for r in rows), dtype=np.int8),
+                            (np.concatenate(rows), np.concatenate(cols))), shape=(len(start), len(start)))
+        _, fan = connected_components(graph, directed=False)
+        # per vertex, its fans in order of their first corner: the first keeps the vertex, the others are copies
+        fan_first = np.full(fan.max() + 1, len(start), dtype=np.int64)
+        np.minimum.at(fan_first, fan, corner)
+        fan_vertex = start[fan_first]
+        by_vertex = np.lexsort((fan_first, fan_vertex))
+        keeps = np.r_[True, fan_vertex[by_vertex][1:] != fan_vertex[by_vertex][:-1]]
+        new_id = np.empty(len(fan_first), dtype=np.int64)
+        new_id[by_vertex[keeps]] = fan_vertex[by_vertex[keeps]]
+        extra = by_vertex[~keeps]
+        new_id[extra] = n_vertices + np.arange(len(extra))
+        out_faces = new_id[fan].reshape(-1, 3)
+        out_order, out_starts, out_counts = edge_groups(out_faces, n_vertices + len(extra))
+        lone = out_order[out_starts[out_counts == 1]]  # half-edges whose edge the split left open
+        if len(lone) == 0:
+            return np.concatenate([np.arange(n_vertices), fan_vertex[extra]]), out_faces
+        # those edges' faces were tangled: join all of them at both ends and split again
+        tangled = np.isin(group_of, np.unique(group_of[lone]))
+        h = np.flatnonzero(tangled)
+        h = h[np.argsort(group_of[h], kind="stable")]
+        first_of = np.r_[True, group_of[h][1:] != group_of[h][:-1]]
+        lead = h[first_of][np.cumsum(first_of) - 1]  # the group's first half-edge, for every member
+        same = start[h] == start[lead]
+        rows += [h, nxt[h]]
+        cols += [np.where(same, lead, nxt[lead]), np.where(same, nxt[lead], lead)]
+    return unchanged
+
+
+def drop_coincident_faces(faces: np.ndarray) -> np.ndarray:
+    """(F', 3) faces without degenerate faces and without faces that share all three vertices.
+
+    Strong decimation occasionally folds a thin spot into two back-to-back
+    triangles on the same three vertices (a zero-volume fin); their edges are
+    then used four times and the mesh is no longer watertight. Removing every
+    copy of such a triangle restores a closed 2-manifold.
+    """
+    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
+    if len(faces) == 0:
+        return faces
+    key = np.sort(faces, axis=1)
+    if int(key[:, 2].max()) < (1 << 21):
+        # One int64 per triangle: a 1-D unique is several times faster than axis=0.
+        key = (key[:, 0] << 42) | (key[:, 1] << 21) | key[:, 2]
+        _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    else:
+        _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return faces[counts[inverse.ravel()] == 1]
+
+
