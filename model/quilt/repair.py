@@ -169,11 +169,16 @@ def fill_cavities(fine: np.ndarray, content: Cells) -> int:
         return 0
     enclosed = comp[:total] != comp[total]
     node_cell = np.repeat(np.arange(len(content)), np.diff(offsets))
-    for q in np.unique(node_cell[enclosed]):
-        block = _block(fine, content.cells[q])
-        lab, _ = ndimage.label(block < ISO_LEVEL, structure=_SIX)
-        fill = [l + 1 for l in range(offsets[q + 1] - offsets[q]) if enclosed[offsets[q] + l]]
-        block[np.isin(lab, fill)] = 1.0
+    cells = np.unique(node_cell[enclosed])
+    for a in range(0, len(cells), BATCH_CELLS):
+        batch = cells[a:a + BATCH_CELLS]
+        labels, counts = block_labels(fine, content.cells[batch], empty=True)
+        # a batch's labels are numbered from 1 block after block; node offsets[q] + l − 1 is label base + l
+        base = np.concatenate([[0], np.cumsum(counts)[:-1]]) - offsets[batch]
+        for i, q in enumerate(batch):
+            nodes = offsets[q] + np.flatnonzero(enclosed[offsets[q]:offsets[q + 1]])
+            block = _block(fine, content.cells[q])
+            block[np.isin(labels[i], nodes + base[i] + 1)] = 1.0
     return len(np.unique(comp[:total][enclosed]))
 
 

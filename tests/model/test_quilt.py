@@ -401,3 +401,16 @@ def test_block_labels_number_each_block_as_labelling_it_alone(empty):
         seen += m
     only_full, n_full = repair.block_labels(np.ones((32, 16, 16), np.float32), np.array([[0, 0, 0], [1, 0, 0]]))
     assert list(n_full) == [1, 1] and (only_full[0] == 1).all() and (only_full[1] == 2).all()
+
+
+def test_enclosed_cavities_are_filled_and_open_pockets_kept():
+    from model.quilt import repair
+
+    occ = np.ones((3, 2, 1), bool)
+    fine = np.ones((48, 32, 16), np.float32)
+    fine[5:9, 5:9, 5:9] = 0  # inside cell (0, 0, 0)
+    fine[20:22, 20:23, 4:6] = 0  # inside cell (1, 1, 0)
+    fine[15:18, 2:4, 2:4] = 0  # across the face between cells (0, 0, 0) and (1, 0, 0)
+    fine[40:48, 0:3, 0:3] = 0  # reaches the grid's border: open to the outside
+    assert repair.fill_cavities(fine, repair.cell_graph(occ)) == 3
+    assert (fine[:40] == 1).all() and (fine[40:48, 0:3, 0:3] == 0).all()
