@@ -5,7 +5,9 @@ One iteration (``Trainer.iteration``):
 1. **Reconstruction** — ``recon_steps_early`` (4) steps per iteration for the first
    ``recon_early_iters`` iterations, then 1: a random style shape as itself, every
    part in its own style; loss Σ_levels β·MSE(output, smoothed target); a G step.
-   The last of these samples is the discriminators' "real" input.
+   The last of these samples is the discriminators' "real" input. With
+   ``distill_frac`` > 0 a step is, with that probability, an augmented content with
+   quilt's output as its target instead (``model/distill.py``).
 2. **Adversarial G step** — an augmented (maybe combined) content with a random
    per-part style assignment; masked LSGAN over all levels with adaptive α (0.1 in
    part-joint cells, 0.5 elsewhere) + γ_down·L_down + γ_up·L_up; a G step (the
