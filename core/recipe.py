@@ -152,7 +152,8 @@ class MeshResolution(str, Enum):
     """At which resolution the fine field is meshed (pipeline/mesh.py's ``mesh_sample_step``).
 
     full: marching cubes on every fine voxel; half: on the field box-averaged 2×2×2 (a quarter of the
-    triangles to smooth and decimate; features thinner than two fine voxels soften); auto (the default):
+    triangles to smooth and decimate; a feature one fine voxel thin becomes paper-thin or goes, and an
+    asset that would vanish is meshed at full resolution); auto (the default):
     half where the triangle budget keeps at most 1 in ``HALF_RES_FACE_RATIO`` of the full-resolution
     surface's triangles (long words, small budgets: there decimation removes that detail anyway), else full.
     """

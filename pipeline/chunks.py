@@ -58,7 +58,6 @@ class DetailedMesh:
 
     Attributes:
         mesh: the joined mesh in metres (``pipeline/mesh.py``).
-        fine: the whole fine grid when the asset was one block, else None (it never existed).
         fine_shape: (3,) the whole fine grid's shape (16 × the coarse grid's).
         structure: ``{"strict_iou", "loose_iou"}`` of the fine output against the coarse grid.
         extras: the blocks' ``FineGrid.extras``, merged.
@@ -66,7 +65,6 @@ class DetailedMesh:
     """
 
     mesh: "trimesh.Trimesh"
-    fine: FineGrid | None
     fine_shape: tuple[int, int, int]
     structure: dict
     extras: dict
@@ -139,7 +137,6 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
     counts = np.zeros(3, dtype=np.int64)
     extras: list[dict] = []
     pieces: list[Piece] = []
-    whole: FineGrid | None = None
     held = None  # (index, own field, own styles) of the block waiting for its right neighbour's first column
 
     def add(seconds_key: str, start: float) -> None:
@@ -169,8 +166,6 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
             on_block(chunk.start * f, field, style)
         coarse = grid.occupancy[chunk.start:chunk.stop]
         counts += structure_counts(field > iso, coarse, f)
-        if len(chunks) == 1:
-            whole = fine
         del fine
         add("detailize", start)
         if held is not None:
@@ -182,6 +177,6 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
     mesh = to_trimesh(pieces, grid.origin_m, grid.voxel_size_m / f, settings.vertex_colors)
     add("mesh", start)
     strict, loose = iou_from_counts(*(int(c) for c in counts))
-    return DetailedMesh(mesh=mesh, fine=whole, fine_shape=tuple(n * f for n in grid.shape),
+    return DetailedMesh(mesh=mesh, fine_shape=tuple(n * f for n in grid.shape),
                         structure={"strict_iou": round(strict, 4), "loose_iou": round(loose, 4)},
                         extras=merge_extras(extras), chunks=len(chunks))

@@ -24,7 +24,7 @@ The result is a ``trimesh.Trimesh`` in metres, canonical frame (+Y up, front +Z)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -71,6 +71,9 @@ HALF_RES_FACE_RATIO = 32
 #: into the next coarse cell: Strict-IOU 0.947 against 0.966 on castle_word); just below 0.5, so that a
 #: box half full is never exactly on the level (degenerate triangles). On a continuous field (the learned
 #: model's) the surface moves inward by the distance between its ``ISO_LEVEL`` and 0.5 levels (~0.3 voxel).
+#: A one-voxel sheet averages to exactly 0.5 in the boxes it lies in: it is meshed paper-thin (at 0.4 it
+#: would be 0.4 voxel thick); a one-voxel rod averages to 0.25 and goes (``mesh_piece`` falls back to full
+#: resolution for a whole asset that would vanish).
 HALF_RES_LEVEL = 0.499
 
 
@@ -216,6 +219,10 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
     level = iso if step == 1 else max(iso, HALF_RES_LEVEL)
     cropped = crop_padded(samples, level, open_x)
     if cropped is None:
+        if step > 1 and not any(open_x) and crop_padded(occupancy, iso) is not None:
+            # only features thinner than a sample (a one-voxel sheet): a whole asset meshes them at full resolution
+            return mesh_piece(occupancy, style, style_names, replace(settings, sample_step=1), max_triangles,
+                              x_offset, open_x, iso)
         return None
     volume, start = cropped
     verts, faces = marching_cubes(volume, level)

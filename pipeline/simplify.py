@@ -1,4 +1,4 @@
-"""Decimation: a closed triangle mesh down to a triangle budget, kept closed and 2-manifold.
+"""Decimation: a closed triangle mesh down to a triangle budget, kept closed (and 2-manifold where it can be).
 
 Quadric decimation by meshoptimizer's simplifier (``decimate_kept``), then two repairs of what strong
 decimation occasionally leaves: back-to-back triangles on the same three vertices (``drop_coincident_faces``)
@@ -30,8 +30,9 @@ def decimate(verts: np.ndarray, faces: np.ndarray, target: int,
 
 def decimate_kept(verts: np.ndarray, faces: np.ndarray, target: int,
                   lock_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Quadric decimation to at most ``target`` faces: (V',) indices of the input vertices kept, in input
-    order, and (F', 3) int64 faces into that subset (so vertex attributes follow by indexing).
+    """Quadric decimation to at most ``target`` faces: (V',) indices of the input vertices kept (in input
+    order, then the copies ``split_pinches`` made) and (F', 3) int64 faces into them (so vertex attributes
+    follow by indexing).
 
     The simplifier keeps the mesh's topology; ``lock_border`` keeps every vertex on an open
     boundary where it is (a block's side that another block continues).

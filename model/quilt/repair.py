@@ -78,10 +78,10 @@ def _block(fine: np.ndarray, cell: np.ndarray) -> np.ndarray:
 BATCH_CELLS = 256
 
 
-def block_labels(fine: np.ndarray, cells: np.ndarray, empty: bool = False) -> tuple[np.ndarray, int]:
+def block_labels(fine: np.ndarray, cells: np.ndarray, empty: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """6-connected components of the blocks of ``cells`` (n, 3), each block labelled on its own.
 
-    Returns (n, CELL, CELL, CELL) int32 labels and how many components there are: 0 outside the mask
+    Returns (n, CELL, CELL, CELL) int32 labels and (n,) int64 how many components each block has: 0 outside the mask
     (voxels ≥ ``ISO_LEVEL``, or < it with ``empty``), else 1 + the component's index, numbered block after
     block and, within a block, in raster order, as ``ndimage.label`` numbers one block alone. A block wholly
     in the mask is one component; the others are stacked with an empty layer between them, so one call
@@ -108,7 +108,7 @@ def block_labels(fine: np.ndarray, cells: np.ndarray, empty: bool = False) -> tu
     labels[full] = (offset[full] + 1).astype(np.int32)[:, None, None, None]
     shift = (offset[mixed] - first).astype(np.int32)[:, None, None, None]
     labels[mixed] = np.where(stacked > 0, stacked + shift, 0)
-    return labels, int(count.sum())
+    return labels, count
 
 
 _FACE_INDEX = [(slice(None), 0), (slice(None), -1), (slice(None), slice(None), 0), (slice(None), slice(None), -1),
@@ -126,24 +126,17 @@ def fine_components(fine: np.ndarray, content: Cells, empty: bool = False):
     """
     n = len(content)
     faces = np.zeros((n, 6, CELL, CELL), dtype=np.int32)
-    per_cell = np.zeros(n, dtype=np.int64)
+    offsets = np.zeros(n + 1, dtype=np.int64)
     sizes = []
-    total = 0
     for a in range(0, n, BATCH_CELLS):
         labels, count = block_labels(fine, content.cells[a:a + BATCH_CELLS], empty)
-        shifted = np.where(labels > 0, labels + np.int32(total), 0) if total else labels
+        offsets[a + 1:a + 1 + len(count)] = offsets[a] + np.cumsum(count)
+        base = np.int32(offsets[a])  # the batch's labels are numbered from 1: shift them to node ids + 1
         for d in range(6):
-            faces[a:a + BATCH_CELLS, d] = shifted[_FACE_INDEX[d]]
-        per_cell[a:a + BATCH_CELLS] = labels.reshape(len(labels), -1).max(axis=1)
-        sizes.append(np.bincount(labels.reshape(-1), minlength=count + 1)[1:])
-        total += count
-    # labels rise block after block: a cell's nodes end at the largest label seen up to it
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    if n:
-        batch_base = np.repeat(np.concatenate([[0], np.cumsum([len(s) for s in sizes])[:-1]]),
-                               [min(BATCH_CELLS, n - a) for a in range(0, n, BATCH_CELLS)])
-        ends = np.where(per_cell > 0, per_cell + batch_base, 0)
-        offsets[1:] = np.maximum.accumulate(ends)
+            face = labels[_FACE_INDEX[d]]
+            faces[a:a + BATCH_CELLS, d] = np.where(face > 0, face + base, 0)
+        sizes.append(np.bincount(labels.reshape(-1), minlength=int(count.sum()) + 1)[1:])
+    total = int(offsets[-1])
     rows, cols = [], []
     for d in range(6):
         r = content.nb[:, d]
@@ -176,11 +169,16 @@ def fill_cavities(fine: np.ndarray, content: Cells) -> int:
         return 0
     enclosed = comp[:total] != comp[total]
     node_cell = np.repeat(np.arange(len(content)), np.diff(offsets))
-    for q in np.unique(node_cell[enclosed]):
-        block = _block(fine, content.cells[q])
-        lab, _ = ndimage.label(block < ISO_LEVEL, structure=_SIX)
-        fill = [l + 1 for l in range(offsets[q + 1] - offsets[q]) if enclosed[offsets[q] + l]]
-        block[np.isin(lab, fill)] = 1.0
+    cells = np.unique(node_cell[enclosed])
+    for a in range(0, len(cells), BATCH_CELLS):
+        batch = cells[a:a + BATCH_CELLS]
+        labels, counts = block_labels(fine, content.cells[batch], empty=True)
+        # a batch's labels are numbered from 1 block after block; node offsets[q] + l − 1 is label base + l
+        base = np.concatenate([[0], np.cumsum(counts)[:-1]]) - offsets[batch]
+        for i, q in enumerate(batch):
+            nodes = offsets[q] + np.flatnonzero(enclosed[offsets[q]:offsets[q + 1]])
+            block = _block(fine, content.cells[q])
+            block[np.isin(labels[i], nodes + base[i] + 1)] = 1.0
     return len(np.unique(comp[:total][enclosed]))
 
 

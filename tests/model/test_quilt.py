@@ -390,14 +390,27 @@ def test_block_labels_number_each_block_as_labelling_it_alone(empty):
     fine[:16, :16] = 1.0  # a full block
     fine[16:32, :16] = 0.0  # an empty one
     cells = np.argwhere(np.ones((3, 2, 1), bool))
-    labels, total = repair.block_labels(fine, cells, empty)
+    labels, counts = repair.block_labels(fine, cells, empty)
     six = ndimage.generate_binary_structure(3, 1)
     seen = 0
     for q, (i, j, k) in enumerate(cells):
         block = fine[16 * i:16 * i + 16, 16 * j:16 * j + 16, 16 * k:16 * k + 16]
         alone, m = ndimage.label(block < ISO_LEVEL if empty else block >= ISO_LEVEL, structure=six)
         np.testing.assert_array_equal(labels[q], np.where(alone > 0, alone + seen, 0))
+        assert counts[q] == m
         seen += m
-    assert total == seen
     only_full, n_full = repair.block_labels(np.ones((32, 16, 16), np.float32), np.array([[0, 0, 0], [1, 0, 0]]))
-    assert n_full == 2 and (only_full[0] == 1).all() and (only_full[1] == 2).all()
+    assert list(n_full) == [1, 1] and (only_full[0] == 1).all() and (only_full[1] == 2).all()
+
+
+def test_enclosed_cavities_are_filled_and_open_pockets_kept():
+    from model.quilt import repair
+
+    occ = np.ones((3, 2, 1), bool)
+    fine = np.ones((48, 32, 16), np.float32)
+    fine[5:9, 5:9, 5:9] = 0  # inside cell (0, 0, 0)
+    fine[20:22, 20:23, 4:6] = 0  # inside cell (1, 1, 0)
+    fine[15:18, 2:4, 2:4] = 0  # across the face between cells (0, 0, 0) and (1, 0, 0)
+    fine[40:48, 0:3, 0:3] = 0  # reaches the grid's border: open to the outside
+    assert repair.fill_cavities(fine, repair.cell_graph(occ)) == 3
+    assert (fine[:40] == 1).all() and (fine[40:48, 0:3, 0:3] == 0).all()

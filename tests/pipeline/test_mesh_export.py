@@ -195,6 +195,14 @@ def test_half_resolution_meshes_the_same_sphere_with_a_quarter_of_the_triangles(
     assert half.volume == pytest.approx(sphere_mesh.volume, rel=0.03)
 
 
+def test_a_shape_thinner_than_a_half_resolution_sample_is_meshed_at_full_resolution():
+    occ = np.zeros((12, 12, 12), np.float32)
+    occ[2:10, 5, 5] = 1.0  # a one-voxel rod: its 2×2×2 averages never reach half
+    mesh = mesh_fine_grid(fine_grid(occ), MeshSettings(max_triangles=None, sample_step=2))
+    full = mesh_fine_grid(fine_grid(occ), MeshSettings(max_triangles=None))
+    assert mesh.is_watertight and mesh.volume == pytest.approx(full.volume) and mesh.volume > 4 * VOXEL**3
+
+
 def test_box_average_is_the_mean_of_each_box_and_pads_with_zeros():
     rng = np.random.default_rng(0)
     field = rng.random((6, 5, 4), dtype=np.float32)
