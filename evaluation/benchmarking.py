@@ -173,9 +173,16 @@ def measure_detailizer(which: str, device: str = "cpu", repeats: int = 5, thread
 
 def bench_assets(recipes: Sequence[Path], repeats: int = 3,
                  progress: Callable[[str], None] | None = None) -> list[dict]:
-    """End-to-end build time per asset (source → GLB + preview): median of ``repeats`` after a warm-up."""
-    from pipeline.build import Progress, build_asset, check_recipe
+    """End-to-end build time per asset (source → GLB + preview): median of ``repeats`` after a warm-up.
+
+    Each asset is built as ``decollage build`` (``--jobs 1``) builds it: with a block process when the
+    machine has a second core (``pipeline/executors.py``'s ``LocalExecutor``).
+    """
     from core.recipe_loader import load_recipe
+    from pipeline.build import Progress, build_asset, check_recipe
+    from pipeline.executors import LocalExecutor
+
+    processes = LocalExecutor().block_processes
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -183,8 +190,9 @@ def bench_assets(recipes: Sequence[Path], repeats: int = 3,
             loaded = load_recipe(recipe)
             check_recipe(loaded)
             for index, asset in enumerate(loaded.recipe.assets):
-                build_asset(loaded, index, Path(tmp), Progress())  # warm-up: imports, first-call costs
-                runs = [build_asset(loaded, index, Path(tmp), Progress()) for _ in range(repeats)]
+                build_asset(loaded, index, Path(tmp), Progress(), block_processes=processes)  # warm-up: imports, caches
+                runs = [build_asset(loaded, index, Path(tmp), Progress(), block_processes=processes)
+                        for _ in range(repeats)]
                 if any(r.status != "built" for r in runs):
                     raise RuntimeError(f"{asset.name} failed: {next(r.error for r in runs if r.status != 'built')}")
                 medians = {s: statistics.median(r.timings_s.get(s, 0.0) for r in runs) for s in STAGES}
