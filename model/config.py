@@ -213,6 +213,11 @@ class ModelConfig:
         style_init_std: the style codes start as N(0, std²) draws (seeded by
             ``torch.manual_seed``); 0 = all zeros, the published code's choice, where the
             codes separate only as fast as their gradient moves them.
+        style_code_rms: 0 = the codes are used as learnt (free norm). > 0: every style's code
+            is rescaled to this root mean square before use (``Generator.style_field``), so
+            only its direction is learnt and it cannot shrink towards zero (the warm-up's
+            reconstruction loss never rewards two styles of one content to differ, and
+            free codes shrank from RMS 1.0 to 0.60 over the ``warmup`` run's 3,000 steps).
         output_mask: every level's output is multiplied by the nearest-upsampled coarse
             occupancy, so nothing is generated outside the occupied coarse cells (a
             training shape's fine voxels always lie inside them: the coarse grid is their
@@ -236,6 +241,7 @@ class ModelConfig:
     leaky_slope: float = 0.02
     clamp_slope: float = 0.002
     style_init_std: float = 0.0
+    style_code_rms: float = 0.0
     output_mask: bool = False
     min_cell_fill: float = 0.0
     losses: LossConfig = field(default_factory=LossConfig)
@@ -376,6 +382,7 @@ class ModelConfig:
             clamp_slope=r.float("clamp_slope"),
             # the three below are absent from checkpoints written before them: the old behaviour
             style_init_std=r.float("style_init_std", default=0.0),
+            style_code_rms=r.float("style_code_rms", default=0.0),
             output_mask=r.bool("output_mask", default=False),
             min_cell_fill=r.float("min_cell_fill", default=0.0),
             losses=_losses_from(r.get("losses"), f"{path}.losses"),
@@ -455,6 +462,8 @@ def _validate(cfg: ModelConfig) -> None:
                 where,
                 "use a smaller stride at the first levels",
             )
+    if cfg.style_code_rms < 0:
+        raise _bad("style_code_rms must be ≥ 0", "style_code_rms", "0 (free codes) or e.g. 1")
     if cfg.style_init_std < 0:
         raise _bad("style_init_std must be ≥ 0", "style_init_std", "0 (zeros, the reference) or e.g. 1")
     if not isinstance(cfg.output_mask, bool):

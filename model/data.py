@@ -314,7 +314,12 @@ def place_in_crop(labels: np.ndarray, rng: np.random.Generator, factor: int, mar
     Returns:
         (f·cells_x, …) int16 fine crop; its ×f max-pool is the coarse bbox with a margin.
     """
-    offset = rng.integers(0, factor, size=3)
+    return place_at(labels, rng.integers(0, factor, size=3), factor, margin, min_cells)
+
+
+def place_at(labels: np.ndarray, offset: Sequence[int], factor: int, margin: int = 1,
+             min_cells: int = 1) -> np.ndarray:
+    """``place_in_crop`` at a given sub-cell ``offset`` (3 ints in [0, factor)) instead of a random one."""
     bbox_cells = [math.ceil((int(o) + n) / factor) for o, n in zip(offset, labels.shape)]
     pad_before = [margin + max(0, min_cells - c - 2 * margin) // 2 for c in bbox_cells]
     cells = [max(c + 2 * margin, min_cells) for c in bbox_cells]

@@ -148,6 +148,14 @@ class Generator(nn.Module):
             feat = spec.width
         self.levels = nn.ModuleList(levels)
 
+    def codes(self) -> Tensor:
+        """The (style_dim, N) codes as used: the learnt ones, or rescaled to ``cfg.style_code_rms`` per style."""
+        rms = self.cfg.style_code_rms
+        if rms <= 0:
+            return self.style_codes
+        norm = self.style_codes.pow(2).mean(0, keepdim=True).add(1e-12).sqrt()
+        return self.style_codes * (rms / norm)
+
     def style_field(self, style_index: Tensor) -> Tensor:
         """Per-voxel style codes: codes × one-hot(style_index), differentiable w.r.t. the codes.
 
@@ -168,7 +176,7 @@ class Generator(nn.Module):
                 field="style",
                 hint="fill empty voxels with the nearest occupied voxel's style (model.masks.fill_nearest)",
             )
-        z = F.embedding(style_index.long(), self.style_codes.t())  # (B, D, H, W, z)
+        z = F.embedding(style_index.long(), self.codes().t())  # (B, D, H, W, z)
         return z.permute(0, 4, 1, 2, 3)
 
     def make_inputs(

@@ -12,6 +12,7 @@ figure. Cost at R = 256 on 2 cores: about a minute (eight quilt detailizations o
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
@@ -28,15 +29,17 @@ def main() -> None:
     ap.add_argument("checkpoint", type=Path)
     ap.add_argument("--set", default="things")
     ap.add_argument("--no-quilt", action="store_true")
+    ap.add_argument("--min-cell-fill", type=float, default=None, help="override the config's projection (0 = off)")
     a = ap.parse_args()
     ck = load_checkpoint(a.checkpoint)
     sset = resolve_style_set(a.set)
     exemplars = exemplars_from_set(sset)
-    gen = Generator(ck.config)
+    cfg = ck.config if a.min_cell_fill is None else dataclasses.replace(ck.config, min_cell_fill=a.min_cell_fill)
+    gen = Generator(cfg)
     gen.load_state_dict(ck.generator)
     aug = AugmentConfig(resolution=int(ck.training["train_config"]["resolution"]))
     teacher = None if a.no_quilt else QuiltTeacher(exemplars, sset)
-    figures = Monitor(exemplars, ck.config, aug, teacher).figures(gen)
+    figures = Monitor(exemplars, cfg, aug, teacher).figures(gen)
     print(json.dumps({"checkpoint": str(a.checkpoint), "step": ck.training.get("step"),
                       "recipe": ck.training.get("recipe"), **figures}), flush=True)
 

@@ -144,3 +144,57 @@ def test_monitor_upsample_baseline_is_a_fixed_reference():
     cfg = _cfg()
     mon = Monitor(EXS, cfg, TrainConfig(out_dir="unused", steps=0, resolution=64).augment())
     assert 0 < mon.baseline_self_iou() <= 1 and mon.baseline_self_iou() == mon.baseline_self_iou()
+
+
+def test_style_code_rms_fixes_the_norm_of_every_code():
+    cfg = dataclasses.replace(_cfg(), style_init_std=1.0, style_code_rms=1.5)
+    torch.manual_seed(0)
+    gen = Generator(cfg)
+    codes = gen.codes()
+    torch.testing.assert_close(codes.pow(2).mean(0).sqrt(), torch.full((cfg.n_styles,), 1.5))
+    # the gradient reaches the learnt codes through the normalisation
+    gen.zero_grad()
+    gen(*_inputs(gen, (3, 4, 3)))[-1].sum().backward()
+    assert gen.style_codes.grad is not None and gen.style_codes.grad.abs().sum() > 0
+    # free codes (the default) are used as learnt; the setting round-trips and rejects a negative
+    assert Generator(_cfg()).codes() is not None and _cfg().style_code_rms == 0
+    assert ModelConfig.from_dict(cfg.to_dict()) == cfg
+    with pytest.raises(DetailizeError):
+        dataclasses.replace(cfg, style_code_rms=-1.0)
+
+
+def test_style_code_rms_output_ignores_the_codes_scale():
+    cfg = dataclasses.replace(_cfg(), style_init_std=1.0, style_code_rms=1.0)
+    torch.manual_seed(1)
+    gen = Generator(cfg)
+    inputs = _inputs(gen, (3, 3, 4), seed=2)
+    styles = torch.randint(0, cfg.n_styles, (1, 3, 3, 4), generator=torch.Generator().manual_seed(5))
+    before = gen(inputs[0], inputs[1], gen.style_field(styles))[-1]
+    with torch.no_grad():
+        gen.style_codes.mul_(0.05)
+    after = gen(inputs[0], inputs[1], gen.style_field(styles))[-1]
+    torch.testing.assert_close(before, after)
+    free = Generator(dataclasses.replace(cfg, style_code_rms=0.0))
+    free.load_state_dict(gen.state_dict())
+    with torch.no_grad():
+        free.style_codes.mul_(20.0)
+    assert not torch.allclose(free(inputs[0], inputs[1], free.style_field(styles))[-1], after)
+
+
+def test_monitor_with_one_style_and_the_raw_self_iou():
+    from model.train import TrainConfig
+
+    aug = TrainConfig(out_dir="unused", steps=0, resolution=64).augment()
+    one = [EXS[0]]
+    cfg = dataclasses.replace(ModelConfig.lean(2, 1).scaled(0.125), min_cell_fill=0.0)
+    torch.manual_seed(0)
+    gen = Generator(cfg)
+    fig = Monitor(one, cfg, aug).figures(gen)
+    assert fig["overlap"] == 1.0  # one style: both outputs are the same style
+    assert fig["self_iou_raw"] == fig["self_iou"]  # no projection: the same figure
+    filled = dataclasses.replace(cfg, min_cell_fill=1.0)
+    gen_f = Generator(filled)
+    gen_f.load_state_dict(gen.state_dict())
+    fig_f = Monitor(one, filled, aug).figures(gen_f)
+    assert fig_f["self_iou_raw"] == fig["self_iou_raw"]  # the projection is inference-only
+    assert fig_f["cell_fill_min"] == 1.0 and "code_rms" in fig_f

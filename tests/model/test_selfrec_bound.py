@@ -1,0 +1,58 @@
+"""The sub-cell offset bound of self-reconstruction (``model/selfrec_bound.py``) and ``place_at``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from model.data import max_pool, place_at, place_in_crop
+from model.selfrec_bound import offset_bound, offset_groups
+
+
+def _placed_coarse(binary, offset, f):
+    fine = place_at(binary.astype(np.int16) - 1, offset, f, margin=0) != -1
+    return max_pool(fine, f)
+
+
+def test_place_at_is_place_in_crop_at_the_drawn_offset():
+    lab = np.zeros((5, 7, 3), dtype=np.int16)
+    lab[1, 2, 0] = -1
+    a = place_in_crop(lab, np.random.default_rng(4), 4, min_cells=3)
+    b = place_at(lab, np.random.default_rng(4).integers(0, 4, size=3), 4, min_cells=3)
+    assert np.array_equal(a, b)
+
+
+def test_groups_are_the_offsets_with_equal_coarse_grids():
+    rng = np.random.default_rng(0)
+    binary = rng.random((6, 5, 7)) > 0.7
+    binary[0, 0, 0] = binary[-1, -1, -1] = True
+    f = 4
+    groups = offset_groups(binary, f)
+    assert len(groups) == f**3
+    offsets = [(0, 0, 0), (1, 2, 3), (3, 3, 3), (2, 0, 1), (1, 2, 2)]
+    for a in offsets:
+        for b in offsets:
+            same = np.array_equal(_placed_coarse(binary, a, f), _placed_coarse(binary, b, f))
+            assert (groups[a] == groups[b]) == same
+
+
+def test_a_solid_cube_hides_its_offset_and_caps_the_iou():
+    f = 4
+    cube = np.ones((8, 8, 8), dtype=bool)
+    groups = offset_groups(cube, f)
+    # at offset 0 the cube fills exactly 2 cells a side: no other offset gives that grid
+    known = offset_bound(cube, (0, 0, 0), f, groups=groups)
+    assert known.group_size == 1 and known.iou_expected == 1.0 and known.iou_at_offset == 1.0
+    # offsets 1..3 per axis all give 3 full cells a side: 27 offsets, one input, up to 2 voxels of shift
+    hidden = offset_bound(cube, (2, 1, 3), f, groups=groups, max_members=27)
+    assert hidden.group_size == 27
+    assert 0.5 < hidden.iou_expected < 0.95
+    # a cube filling whole cells survives the fill projection; nothing to add
+    assert known.projection_iou == 1.0
+
+
+def test_the_projection_inflates_a_thin_exemplar():
+    f = 4
+    rod = np.zeros((1, 8, 1), dtype=bool)
+    rod[:] = True  # one voxel thick: every cell it touches is 1/16 full
+    b = offset_bound(rod, (0, 0, 0), f, min_fill=0.5)
+    assert b.projection_iou < 0.2
