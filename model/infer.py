@@ -83,8 +83,26 @@ def resolve_device(device: Device | str) -> "torch.device":  # noqa: F821 - torc
     return torch.device(text)
 
 
+def thin_cells(occupancy: np.ndarray) -> np.ndarray:
+    """Occupied coarse cells one cell thick along some axis (both neighbours on that axis empty): (X, Y, Z) bool.
+
+    These are the cells of strokes, spires and limbs one cell wide; a cell on the boundary of
+    a thicker part has an occupied neighbour inward along every axis and is not one of them.
+    """
+    occ = np.pad(occupancy.astype(bool), 1)
+    thin = np.zeros(occupancy.shape, dtype=bool)
+    core = occ[1:-1, 1:-1, 1:-1]
+    for axis in range(3):
+        before = np.take(occ, range(0, occ.shape[axis] - 2), axis=axis)
+        after = np.take(occ, range(2, occ.shape[axis]), axis=axis)
+        sl = [slice(1, -1)] * 3
+        sl[axis] = slice(None)
+        thin |= ~before[tuple(sl)] & ~after[tuple(sl)]
+    return thin & core
+
+
 def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, min_fill: float,
-                        iso: float = ISO_LEVEL) -> np.ndarray:
+                        iso: float = ISO_LEVEL, thin_only: bool = False) -> np.ndarray:
     """Raise the field of every occupied coarse cell whose block is less than ``min_fill`` occupied.
 
     For such a cell, the field of its ``factor``³ block is raised uniformly by the
@@ -97,6 +115,8 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
     Args:
         fine: (f·X, f·Y, f·Z) float32 field in [0, 1]; modified in place and returned.
         occupancy: (X, Y, Z) bool coarse cells.
+        thin_only: raise only the ``thin_cells`` of the input (one cell thick along some
+            axis), and leave the boundary cells of thicker parts as the generator made them.
     """
     if min_fill <= 0 or not occupancy.any():
         return fine
@@ -104,7 +124,10 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
     f, n = factor, factor**3
     k = int(np.ceil(min_fill * n))
     above = (fine > iso).reshape(x, f, y, f, z, f).sum(axis=(1, 3, 5), dtype=np.int32)
-    for cx, cy, cz in np.argwhere(occupancy & (above < k)):
+    todo = occupancy & (above < k)
+    if thin_only:
+        todo &= thin_cells(occupancy)
+    for cx, cy, cz in np.argwhere(todo):
         block = (slice(cx * f, cx * f + f), slice(cy * f, cy * f + f), slice(cz * f, cz * f + f))
         values = fine[block]
         kth = float(np.partition(values.ravel(), n - k)[n - k])  # the k-th largest value
@@ -276,4 +299,5 @@ class DecollageDetailizer:
             crop = out.float().clamp_(0.0, 1.0).cpu().numpy()
         fine = np.zeros(tuple(n * f for n in occ.shape), dtype=np.float32)
         fine[tuple(slice(s.start * f, s.stop * f) for s in src)] = crop
-        return min_fill_projection(fine, occ, f, self.ckpt.config.min_cell_fill)
+        cfg = self.ckpt.config
+        return min_fill_projection(fine, occ, f, cfg.min_cell_fill, thin_only=cfg.min_fill_thin_only)

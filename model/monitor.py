@@ -81,7 +81,8 @@ def detailize_sample(gen: Generator, sample: Sample, style_index: np.ndarray | N
     """
     cfg = gen.cfg
     out = detailize_field(gen, sample, style_index)
-    return min_fill_projection(out, sample.coarse_occupancy, cfg.factor, cfg.min_cell_fill) > ISO_LEVEL
+    return min_fill_projection(out, sample.coarse_occupancy, cfg.factor, cfg.min_cell_fill,
+                               thin_only=cfg.min_fill_thin_only) > ISO_LEVEL
 
 
 def cell_fill(fine: np.ndarray, coarse: np.ndarray, factor: int) -> np.ndarray:
@@ -147,8 +148,8 @@ class Monitor:
                 field = detailize_field(gen, s)
                 truth = s.fine_labels != EMPTY
                 raw_ious.append(_iou(field > ISO_LEVEL, truth))
-                self_ious.append(_iou(min_fill_projection(field, s.coarse_occupancy, f, self.cfg.min_cell_fill)
-                                      > ISO_LEVEL, truth))
+                self_ious.append(_iou(min_fill_projection(field, s.coarse_occupancy, f, self.cfg.min_cell_fill,
+                                                          thin_only=self.cfg.min_fill_thin_only) > ISO_LEVEL, truth))
             overlaps, stricts, fills, quilt = [], [], [], []
             for k, (c, a, b) in enumerate(contents):
                 outs = [detailize_sample(gen, c, np.full(c.coarse_occupancy.shape, st, dtype=np.int64))

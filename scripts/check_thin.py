@@ -1,6 +1,6 @@
 """Do thin features survive? Issue 15's check on the protocol's texts and CAD contents.
 
-    .venv/bin/python scripts/check_thin.py [--checkpoint model/weights/things.pt] [--min-cell-fill 0.5]
+    .venv/bin/python scripts/check_thin.py [--checkpoint model/weights/things.pt] [--min-cell-fill 0.5] [--thin-only]
                                            [--kinds text,cad] [--style cottage]
 
 For each content of those kinds, one output (every part in ``--style``): the occupied
@@ -37,11 +37,14 @@ def main() -> None:
     ap.add_argument("--min-cell-fill", type=float, default=None)
     ap.add_argument("--kinds", default="text,cad")
     ap.add_argument("--style", default="cottage")
+    ap.add_argument("--thin-only", action="store_true", help="project one-cell-thick cells only (min_fill_thin_only)")
     a = ap.parse_args()
     det = DecollageDetailizer(a.checkpoint, device="cpu")
     if a.min_cell_fill is not None:
         det.ckpt = dataclasses.replace(det.ckpt, config=dataclasses.replace(det.ckpt.config,
                                                                           min_cell_fill=a.min_cell_fill))
+    if a.thin_only:
+        det.ckpt = dataclasses.replace(det.ckpt, config=dataclasses.replace(det.ckpt.config, min_fill_thin_only=True))
     proto = load_protocol()
     kinds = set(a.kinds.split(","))
     f = det.ckpt.config.factor
@@ -62,7 +65,8 @@ def main() -> None:
         ext = _extent(out) / (_extent(occ) * f) if out.any() else np.zeros(3)
         rows.append((cid, fills.min(), float(np.mean(fills >= 0.5)), float(np.abs(ext - 1).max()),
                      (pooled & occ).sum() / (pooled | occ).sum(), (pooled & occ).sum() / occ.sum(), dt))
-    print(f"checkpoint {det.checkpoint_path}, min_cell_fill {det.ckpt.config.min_cell_fill}, style {a.style}")
+    print(f"checkpoint {det.checkpoint_path}, min_cell_fill {det.ckpt.config.min_cell_fill}, "
+          f"thin only {det.ckpt.config.min_fill_thin_only}, style {a.style}")
     print("| content | worst cell fill | cells ≥ 50 % | worst extent error | Strict | Loose | s |")
     print("|---|---|---|---|---|---|---|")
     for cid, fmin, half, ext, strict, loose, dt in rows:

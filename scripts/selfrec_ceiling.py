@@ -8,7 +8,8 @@ Per exemplar, at the offset ``model/monitor.py`` draws for it: ``model.selfrec_b
 training target above the 0.4 iso against the exemplar (``target_rt``); IOU of the exemplar after the
 ``min_cell_fill`` 0.5 projection, applied to its binary occupancy (``proj``, the worst case: an empty
 voxel of a thin cell is raised to the iso level, so the whole block fills) and to its smoothed training
-target (``proj_smooth``: what a generator that fits its target exactly scores); with ``--quilt``, IOU of quilt's output on the same
+target (``proj_smooth``: what a generator that fits its target exactly scores; ``proj_smooth_thin``: the
+same with the projection on one-cell-thick cells only, ``thin_only``); with ``--quilt``, IOU of quilt's output on the same
 coarse grid and style (``quilt``; seed 0), the monitor's ``self_iou`` figure for quilt.
 """
 
@@ -58,10 +59,13 @@ def main() -> None:
         rt = smooth > ISO_LEVEL
         # a generator that fits its training target exactly outputs ``smooth``: the projection's cost on it
         proj = min_fill_projection(smooth.copy(), sample.coarse_occupancy, f, cfg.min_cell_fill or 0.5) > ISO_LEVEL
+        thin = min_fill_projection(smooth.copy(), sample.coarse_occupancy, f, cfg.min_cell_fill or 0.5,
+                                   thin_only=True) > ISO_LEVEL
         row = {"exemplar": e.name, "voxels": int(union), "offset": offset, "group": b.group_size,
                "bound": round(b.iou_expected, 4), "bound_at_offset": round(b.iou_at_offset, 4),
                "threshold": b.threshold, "proj": round(b.projection_iou, 4),
                "proj_smooth": round(float(np.count_nonzero(proj & truth) / np.count_nonzero(proj | truth)), 4),
+               "proj_smooth_thin": round(float(np.count_nonzero(thin & truth) / np.count_nonzero(thin | truth)), 4),
                "target_rt": round(float(np.count_nonzero(rt & truth) / np.count_nonzero(rt | truth)), 4)}
         if teacher is not None:
             q = teacher.target(sample, 0).fine_labels != EMPTY
@@ -69,7 +73,7 @@ def main() -> None:
         row["s"] = round(time.time() - t0, 1)
         rows.append(row)
         print(json.dumps(row), flush=True)
-    keys = [k for k in ("bound", "bound_at_offset", "proj", "proj_smooth", "target_rt", "quilt") if k in rows[0]]
+    keys = [k for k in ("bound", "bound_at_offset", "proj", "proj_smooth", "proj_smooth_thin", "target_rt", "quilt") if k in rows[0]]
     summary = {k: {"mean": round(float(np.mean([r[k] for r in rows])), 4),
                    "min": round(float(np.min([r[k] for r in rows])), 4)} for k in keys}
     summary["group_mean"] = float(np.mean([r["group"] for r in rows]))

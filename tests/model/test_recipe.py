@@ -85,11 +85,12 @@ def test_up_level_weights_scale_each_level_and_leave_down_alone():
 
 def test_config_reads_checkpoints_written_before_the_recipe_switches():
     data = _cfg().to_dict()
-    for key in ("style_init_std", "output_mask", "min_cell_fill"):
+    for key in ("style_init_std", "output_mask", "min_cell_fill", "style_code_rms", "min_fill_thin_only"):
         data.pop(key)
     data["losses"].pop("up_level_weights")
     assert ModelConfig.from_dict(data) == _cfg()
     new = dataclasses.replace(_cfg(), style_init_std=0.5, output_mask=True, min_cell_fill=0.5,
+                              style_code_rms=1.0, min_fill_thin_only=True,
                               losses=dataclasses.replace(_cfg().losses, up_level_weights=(1, 1, 0.1, 0.1)))
     assert ModelConfig.from_dict(json.loads(json.dumps(new.to_dict()))) == new
     with pytest.raises(DetailizeError, match="min_cell_fill"):
@@ -198,3 +199,27 @@ def test_monitor_with_one_style_and_the_raw_self_iou():
     fig_f = Monitor(one, filled, aug).figures(gen_f)
     assert fig_f["self_iou_raw"] == fig["self_iou_raw"]  # the projection is inference-only
     assert fig_f["cell_fill_min"] == 1.0 and "code_rms" in fig_f
+
+
+def test_a_warmup_state_moves_to_warmup_thin_and_resumes(tmp_path):
+    from model.checkpoint import save_checkpoint
+    from model.recipes import move_state_recipe, recipe_configs
+
+    cfg_w, t_w = recipe_configs("warmup", _cfg(), _tcfg(tmp_path, 1, recipe="warmup"))
+    res = train(EXS, cfg_w, t_w, resume=False)
+    ck = load_checkpoint(res.checkpoint, training_state=True)
+    moved = move_state_recipe(ck, "warmup_thin")
+    assert moved.config == dataclasses.replace(ck.config, min_fill_thin_only=True)
+    assert moved.training["recipe"] == "warmup_thin" and moved.training["step"] == 1
+    for k in ck.generator:
+        assert torch.equal(ck.generator[k], moved.generator[k])
+    cfg_t, t_t = recipe_configs("warmup_thin", _cfg(), _tcfg(tmp_path, 2, recipe="warmup_thin"))
+    assert cfg_t == moved.config
+    save_checkpoint(tmp_path / "run" / "last.pt", moved)
+    trainer = Trainer(EXS, cfg_t, t_t)
+    trainer.restore(tmp_path / "run" / "last.pt")  # accepted as a warmup_thin state
+    assert trainer.step == 1
+    # recipes that train differently are refused
+    for other in ("reference", "distill"):
+        with pytest.raises(ValueError, match="train differently"):
+            move_state_recipe(ck, other)

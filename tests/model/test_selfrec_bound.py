@@ -56,3 +56,40 @@ def test_the_projection_inflates_a_thin_exemplar():
     rod[:] = True  # one voxel thick: every cell it touches is 1/16 full
     b = offset_bound(rod, (0, 0, 0), f, min_fill=0.5)
     assert b.projection_iou < 0.2
+
+
+def test_thin_cells_are_one_cell_thick_along_some_axis():
+    from model.infer import thin_cells
+
+    occ = np.zeros((6, 6, 6), dtype=bool)
+    occ[1:4, 1:4, 1:4] = True  # a 3³ block: every cell has an occupied neighbour inward on every axis
+    assert not thin_cells(occ).any()
+    occ[2, 4:6, 2] = True  # a rod of two cells up from the block's top face, to the grid's edge
+    thin = thin_cells(occ)
+    assert {tuple(c) for c in np.argwhere(thin)} == {(2, 4, 2), (2, 5, 2)}
+    flat = np.zeros((4, 1, 4), dtype=bool)
+    flat[1:3, 0, 1:3] = True  # a slab one cell thick in y: all thin
+    assert thin_cells(flat).sum() == 4
+
+
+def test_thin_only_projection_leaves_thick_parts_alone():
+    from model.infer import min_fill_projection
+
+    f = 4
+    occ = np.zeros((5, 5, 5), dtype=bool)
+    occ[1:4, 1:4, 1:4] = True
+    occ[2, 4, 2] = True  # one thin cell on top
+    fine = np.zeros((20, 20, 20), dtype=np.float32)
+    fine[4:16, 4:16, 4:16] = 0.9  # the block, solid...
+    fine[4:5, 4:16, 4:16] = 0.0  # ...but its first layer of cells only 3/4 full in x
+    fine[4:6, 4:6, 4:6] = 0.0
+    fine[8:16, 4:5, 4:16] = 0.0  # a face cell row 3/4 full
+    fine[8, 16, 8] = 0.9  # the thin cell: one voxel
+    all_cells = min_fill_projection(fine.copy(), occ, f, 0.9)
+    thin = min_fill_projection(fine.copy(), occ, f, 0.9, thin_only=True)
+    block = (slice(8, 12), slice(16, 20), slice(8, 12))
+    assert (thin[block] > 0.4).mean() >= 0.9 and (all_cells[block] > 0.4).mean() >= 0.9
+    rest = np.ones_like(fine, dtype=bool)
+    rest[block] = False
+    assert np.array_equal(thin[rest], fine[rest])  # thick cells untouched
+    assert not np.array_equal(all_cells[rest], fine[rest])  # the plain projection grew them
