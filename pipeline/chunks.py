@@ -176,9 +176,10 @@ def run_blocks(job: BlockJob, blocks: range,
         if head is not None:
             field = np.concatenate([field, head[0][:shared]])
             style = np.concatenate([style, head[1][:shared]])
+        lo, hi = max(chunks[k].start - 1, 0), min(chunks[k].stop + 1, grid.shape[0])  # a column of context
         piece = mesh_piece(field, style if settings.vertex_colors else None, grid.style_names, settings,
                            job.shares[k], x_offset=chunks[k].start * f, open_x=(k > 0, head is not None),
-                           iso=job.iso)
+                           iso=job.iso, coarse=grid.occupancy[lo:hi], coarse_x0=(lo - chunks[k].start) * f)
         if piece is not None:
             out.pieces.append(piece)
         add("mesh", start)
