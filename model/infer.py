@@ -116,7 +116,9 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
         fine: (f·X, f·Y, f·Z) float32 field in [0, 1]; modified in place and returned.
         occupancy: (X, Y, Z) bool coarse cells.
         thin_only: raise only the ``thin_cells`` of the input (one cell thick along some
-            axis), and leave the boundary cells of thicker parts as the generator made them.
+            axis) to ``min_fill``; every other occupied cell only to one voxel above ``iso``
+            (its highest; so Strict-IOU stays 1), leaving the boundary cells of thicker parts as the
+            generator made them.
     """
     if min_fill <= 0 or not occupancy.any():
         return fine
@@ -124,13 +126,16 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
     f, n = factor, factor**3
     k = int(np.ceil(min_fill * n))
     above = (fine > iso).reshape(x, f, y, f, z, f).sum(axis=(1, 3, 5), dtype=np.int32)
-    todo = occupancy & (above < k)
-    if thin_only:
-        todo &= thin_cells(occupancy)
-    for cx, cy, cz in np.argwhere(todo):
+    need = np.where(thin_cells(occupancy), k, 1) if thin_only else np.full(occupancy.shape, k)
+    for cx, cy, cz in np.argwhere(occupancy & (above < need)):
+        kc = int(need[cx, cy, cz])
         block = (slice(cx * f, cx * f + f), slice(cy * f, cy * f + f), slice(cz * f, cz * f + f))
         values = fine[block]
-        kth = float(np.partition(values.ravel(), n - k)[n - k])  # the k-th largest value
+        if kc == 1:  # the thin-only floor: the block's highest voxel alone (an all-zero block is not filled)
+            i = np.unravel_index(int(np.argmax(values)), values.shape)
+            values[i] = iso + 1e-4
+            continue
+        kth = float(np.partition(values.ravel(), n - kc)[n - kc])  # the kc-th largest value
         fine[block] = np.minimum(values + (iso - kth + 1e-4), 1.0)
     return fine
 

@@ -91,5 +91,9 @@ def test_thin_only_projection_leaves_thick_parts_alone():
     assert (thin[block] > 0.4).mean() >= 0.9 and (all_cells[block] > 0.4).mean() >= 0.9
     rest = np.ones_like(fine, dtype=bool)
     rest[block] = False
-    assert np.array_equal(thin[rest], fine[rest])  # thick cells untouched
+    assert np.array_equal(thin[rest], fine[rest])  # thick cells that hold a voxel: untouched
     assert not np.array_equal(all_cells[rest], fine[rest])  # the plain projection grew them
+    # a thick cell the generator left empty gets one voxel (so Strict-IOU stays 1), no more
+    fine[4:8, 4:8, 4:8] = 0.0
+    floor = min_fill_projection(fine.copy(), occ, f, 0.9, thin_only=True)
+    assert (floor[4:8, 4:8, 4:8] > 0.4).sum() == 1
