@@ -26,7 +26,6 @@ from core.grid import FineGrid
 from pipeline.mesh import (
     FULL_RES_FACES_PER_COARSE_FACE,
     HALF_RES_FACE_RATIO,
-    HALF_RES_MIN_COLUMNS,
     MeshSettings,
     box_average,
     mesh_fine_grid,
@@ -237,20 +236,31 @@ def test_smoothed_vertices_stay_in_the_coarse_cells_and_inner_creases_stay_sharp
     assert crease.tolist() == [True, False, False]  # within 1.5 voxels of the corner cell only
 
 
+def test_half_resolution_keeps_material_thinner_than_a_sample():
+    from pipeline.mesh import keep_thin_cells
+
+    field = np.zeros((32, 16, 16), np.float32)
+    field[3:13, 7, 7] = 1.0  # a one-voxel stroke in cell (0, 0, 0): its 2³ box averages are 0.25
+    field[16:32, :, :] = 1.0  # cell (1, 0, 0) is solid
+    samples = box_average(field, 2)
+    assert samples[:8].max() < 0.499
+    assert keep_thin_cells(samples, field, 2, 0.499, 0.4) == 1  # only the thin cell
+    kept = samples[:8] >= 0.499
+    assert kept.sum() == 6 and kept[1:7, 3, 3].all()  # voxels 3..12 lie in boxes 1..6
+    assert (samples[8:] == 1.0).all()  # the solid cell is as it was
+
+
 def test_auto_mesh_resolution_follows_the_budget():
     bar = np.zeros((80, 3, 3), bool)
     bar[:, 1, 1] = True  # 4 · 80 + 2 = 322 exposed coarse faces: about 165 000 full-resolution triangles
     faces = FULL_RES_FACES_PER_COARSE_FACE * 322
     assert mesh_sample_step(MeshResolution.AUTO, faces // HALF_RES_FACE_RATIO, bar) == 2
-    # a grid not longer than HALF_RES_MIN_COLUMNS keeps full resolution (thin parts), whatever the budget
-    short = bar[:HALF_RES_MIN_COLUMNS]
-    assert mesh_sample_step(MeshResolution.AUTO, 10, short) == 1
+
     assert mesh_sample_step(MeshResolution.AUTO, faces // HALF_RES_FACE_RATIO + 1, bar) == 1
     assert mesh_sample_step(MeshResolution.AUTO, None, bar) == 1  # no budget: nothing to lose
     assert mesh_sample_step(MeshResolution.FULL, 10, bar) == 1
     assert mesh_sample_step(MeshResolution.HALF, None, bar) == 2
     assert MeshSettings.from_export(ExportSettings(max_triangles=100, mesh_resolution="auto"), bar).sample_step == 2
-    assert MeshSettings.from_export(ExportSettings(max_triangles=100, mesh_resolution="auto"), short).sample_step == 1
     with pytest.raises(ValueError):
         MeshSettings(sample_step=3)
 
