@@ -3,7 +3,7 @@
 Each row builds one text asset (``size_m`` 0.5, depth 0.12, two styles, the default detailizer and every
 default setting) through the real CLI in a fresh process, and reports the wall time, the stage times
 from the manifest, the time per letter, the blocks the asset was cut into (``pipeline/chunks.py``) and
-the peak RSS of the process (``getrusage``). The reference workload (``evaluation/benchmarking.py``) is
+the peak RSS of the process plus its block process's (an upper bound: pages they share count twice). The reference workload (``evaluation/benchmarking.py``) is
 timed in the same run.
 
     .venv/bin/python benchmarks/bench_long_text.py [--lengths 5 10 20] [--fonts A.ttf B.ttf]
@@ -34,10 +34,11 @@ FONTS = [None, Path("/usr/share/fonts/truetype/liberation/LiberationSerif-Bold.t
 
 _WRAPPER = """
 import atexit, json, os, sys
-from core.processes import own_peak_rss_mb  # this process's own peak (ru_maxrss would carry the runner's)
+# own peak (ru_maxrss would carry the runner's) + the block process's (pipeline/forked.py; counts shared pages twice)
+from core.processes import children_peak_rss_mb, own_peak_rss_mb
 def _rss():
     with open(os.environ["DECOLLAGE_BENCH_RSS"], "w") as f:
-        json.dump({"peak_mb": own_peak_rss_mb()}, f)
+        json.dump({"peak_mb": own_peak_rss_mb() + children_peak_rss_mb()}, f)
 atexit.register(_rss)
 sys.argv = ["decollage", *sys.argv[1:]]
 from cli.app import main

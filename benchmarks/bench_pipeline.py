@@ -28,12 +28,13 @@ def main(argv: list[str]) -> None:
     recipes = [Path(a) for a in argv] or [REPO / "recipes" / "showcase.yaml"]
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
     print(f"median of {REPEATS} runs after one warm-up, seconds\n")
-    header = ["asset", *STAGES, "total", "triangles"]
+    header = ["asset", *STAGES, "total", "triangles", "reference s", "× ref"]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header))
     for row in bench_assets(recipes, REPEATS):
         t = row["stages_s"]
-        cells = [f"{t[s]:.2f}" for s in STAGES] + [f"{row['total_s']:.2f}", str(row["triangles"])]
+        cells = [f"{t[s]:.2f}" for s in STAGES] + [f"{row['total_s']:.2f}", str(row["triangles"]),
+                                                   f"{row['reference_s']:.3f}", f"{row['total_s'] / row['reference_s']:.1f}"]
         print(f"| {row['asset']} | " + " | ".join(cells) + " |")
 
 

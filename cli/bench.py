@@ -131,15 +131,19 @@ def bench_markdown(machine: dict, rows: list[dict], asset_rows: list[dict], trai
                   f"Median of {asset_rows[0]['repeats']} builds after a warm-up, seconds; each asset with its "
                   "recipe's detailizer."
                   + (f" Reference workload (marching cubes of a 256³ sphere field, scikit-image) in the same run: "
-                     f"{ref:.3f} s (load average {reference['load_average']}); × ref = total / reference."
-                     if ref else ""), "",
+                     f"{ref:.3f} s (load average {reference['load_average']}); × ref = total / the reference timed "
+                     "just before and after that asset's builds (the machine's speed drifts)."
+                     if ref else "")
+                  + f" `decollage build` uses {asset_rows[0].get('block_processes', 1)} process(es) per asset here "
+                    "(a long asset's blocks in two halves, `pipeline/chunks.py`).", "",
                   "| recipe | asset | detailizer | fine grid | " + " | ".join(stages)
                   + " | total | × ref | triangles | GLB KB |",
                   "|---|---|---|---|" + "---|" * (len(stages) + 4)]
         for a in asset_rows:
             st = a["stages_s"]
             glb = a.get("glb_bytes")
-            ratio = f"{a['total_s'] / ref:.1f}" if ref else "–"
+            own_ref = a.get("reference_s", ref)
+            ratio = f"{a['total_s'] / own_ref:.1f}" if own_ref else "–"
             size = f"{glb / 1024:.0f}" if glb else "–"
             lines.append(f"| {a['recipe']} | {a['asset']} | {a['detailizer']} | {'×'.join(map(str, a['fine_grid']))} | "
                          + " | ".join(f"{st.get(s, 0.0):.2f}" for s in stages)

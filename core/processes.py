@@ -122,3 +122,15 @@ def own_peak_rss_mb() -> float:
     import resource
 
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def children_peak_rss_mb() -> float:
+    """The largest peak resident memory of this process's ended, waited-for children, MiB (0 without any).
+
+    A forked child's figure counts the pages it shares with this process, so ``own_peak_rss_mb() +
+    children_peak_rss_mb()`` bounds a build's memory from above when it used a block process
+    (``pipeline/forked.py``). Exec'd children (a script runner) count too.
+    """
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024

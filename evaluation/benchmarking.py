@@ -172,19 +172,31 @@ def measure_detailizer(which: str, device: str = "cpu", repeats: int = 5, thread
 
 
 def bench_assets(recipes: Sequence[Path], repeats: int = 3,
-                 progress: Callable[[str], None] | None = None) -> list[dict]:
-    """End-to-end build time per asset (source → GLB + preview): median of ``repeats`` after a warm-up."""
-    from pipeline.build import Progress, build_asset, check_recipe
-    from core.recipe_loader import load_recipe
+                 progress: Callable[[str], None] | None = None, reference: bool = True) -> list[dict]:
+    """End-to-end build time per asset (source → GLB + preview): median of ``repeats`` after a warm-up.
 
+    Each asset is built as ``decollage build`` (``--jobs 1``) builds it: with a block process when the
+    machine has a second core (``pipeline/executors.py``'s ``LocalExecutor``). With ``reference``, each
+    row also holds ``reference_s``: the reference workload timed just before and just after that asset's
+    builds (the mean of the two medians), so that its ratio compares figures of the same minutes even
+    when the machine's speed drifts (shared virtual machines: other guests' load shows as steal time).
+    """
+    from core.recipe_loader import load_recipe
+    from pipeline.build import Progress, build_asset, check_recipe
+    from pipeline.executors import LocalExecutor
+
+    processes = LocalExecutor().block_processes
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for recipe in recipes:
             loaded = load_recipe(recipe)
             check_recipe(loaded)
             for index, asset in enumerate(loaded.recipe.assets):
-                build_asset(loaded, index, Path(tmp), Progress())  # warm-up: imports, first-call costs
-                runs = [build_asset(loaded, index, Path(tmp), Progress()) for _ in range(repeats)]
+                build_asset(loaded, index, Path(tmp), Progress(), block_processes=processes)  # warm-up: imports, caches
+                before = reference_workload_seconds(3)["median_s"] if reference else None
+                runs = [build_asset(loaded, index, Path(tmp), Progress(), block_processes=processes)
+                        for _ in range(repeats)]
+                after = reference_workload_seconds(3)["median_s"] if reference else None
                 if any(r.status != "built" for r in runs):
                     raise RuntimeError(f"{asset.name} failed: {next(r.error for r in runs if r.status != 'built')}")
                 medians = {s: statistics.median(r.timings_s.get(s, 0.0) for r in runs) for s in STAGES}
@@ -193,7 +205,9 @@ def bench_assets(recipes: Sequence[Path], repeats: int = 3,
                              "glb_bytes": runs[0].outputs.get("glb", {}).get("bytes"),
                              "detailizer": runs[0].info["detailizer"]["name"],
                              "fine_grid": runs[0].info["fine_grid_shape"],
-                             "triangles": runs[0].info["mesh"]["triangles"], "repeats": repeats})
+                             "triangles": runs[0].info["mesh"]["triangles"], "repeats": repeats,
+                             "block_processes": processes,
+                             **({"reference_s": (before + after) / 2} if reference else {})})
                 if progress:
                     progress(f"{asset.name}: {rows[-1]['total_s']:.2f} s")
     return rows

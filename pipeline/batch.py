@@ -113,7 +113,8 @@ class _Leased(Progress):
 
 
 def build_task(recipe_text: str, recipe_path: str, index: int, key: str, out_dir: str,
-               detailizer_override: str | None = None, lease: str = "", progress: Progress | None = None) -> AssetReport:
+               detailizer_override: str | None = None, lease: str = "", block_processes: int = 1,
+               progress: Progress | None = None) -> AssetReport:
     """Build one planned asset and record it; a function of plain data, so any executor can run it.
 
     ``lease`` is the build id of the build that holds ``out_dir`` (``pipeline/lock.py``): the task
@@ -127,7 +128,7 @@ def build_task(recipe_text: str, recipe_path: str, index: int, key: str, out_dir
         _LOADED[cache_key] = LoadedRecipe(parse_recipe(recipe_text, path, max_assets=None), path, recipe_text)
     out = Path(out_dir)
     leased = _Leased(progress or Progress(), out, lease)
-    report = build_asset(_LOADED[cache_key], index, out, leased, detailizer_override)
+    report = build_asset(_LOADED[cache_key], index, out, leased, detailizer_override, block_processes)
     if report.status == AssetStatus.BUILT:
         try:
             leased.check()
@@ -202,8 +203,9 @@ def _run(loaded: LoadedRecipe, out_dir: Path, plan: list[PlannedAsset], progress
             reports[p.index] = AssetReport.from_entry(p.index, p.cached_entry)
             progress.asset_finished(reports[p.index])
     todo = [p for p in plan if p.cached_entry is None]
-    tasks = [(loaded.text, str(loaded.path), p.index, p.key, str(out_dir), detailizer_override, lock.build_id)
-             for p in todo]
+    processes = getattr(executor, "block_processes", 1)
+    tasks = [(loaded.text, str(loaded.path), p.index, p.key, str(out_dir), detailizer_override, lock.build_id,
+              processes) for p in todo]
 
     def done(report: AssetReport) -> None:
         reports[report.index] = report

@@ -23,7 +23,7 @@ import traceback
 from contextlib import contextmanager
 from pathlib import Path
 
-from core.budget import check_asset_memory
+from core.budget import check_asset_memory, memory_budget_bytes
 from core.capture import captured_warnings
 from core.detailizer import effective_checkpoint, get_detailizer, kernel_threads
 from core.errors import DecollageError, RecipeError, UsageError
@@ -176,14 +176,18 @@ def _timed(report: AssetReport, stage: str, progress: Progress):
 
 
 def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progress,
-                detailizer_override: str | None = None) -> AssetReport:
-    """Build one asset; never raises for asset-level problems (they go into the report)."""
+                detailizer_override: str | None = None, block_processes: int = 1) -> AssetReport:
+    """Build one asset; never raises for asset-level problems (they go into the report).
+
+    ``block_processes`` 2 lets an asset of several blocks use a second process for half of them
+    (``pipeline/chunks.py``) when twice its memory estimate fits the budget; outputs are the same.
+    """
     asset = loaded.recipe.assets[index]
     report = AssetReport(name=asset.name, index=index)
     where, _ = loaded.where(index)
     try:
         with captured_warnings(report.warnings):
-            _build(asset, loaded, index, out_dir, progress, report, detailizer_override)
+            _build(asset, loaded, index, out_dir, progress, report, detailizer_override, block_processes)
         report.status = AssetStatus.BUILT
     except DecollageError as exc:
         report.status = AssetStatus.FAILED
@@ -200,7 +204,7 @@ def build_asset(loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progr
 
 
 def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progress: Progress,
-           report: AssetReport, detailizer_override: str | None) -> None:
+           report: AssetReport, detailizer_override: str | None, block_processes: int = 1) -> None:
 
     report.inputs = {
         "entry_sha256": hashlib.sha256(asset.model_dump_json(by_alias=True).encode()).hexdigest(),
@@ -222,7 +226,9 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
             check_asset_memory(shape, supersample=supersample, **grid_args)
         part_grid = voxelize(source, asset.grid, asset.fit)
         # the fine grid's cost, before detailizing: of the largest block a long grid is cut into (pipeline/chunks.py)
-        check_asset_memory(detail_shape(part_grid.shape), **grid_args)
+        needed = check_asset_memory(detail_shape(part_grid.shape), **grid_args)
+    if 2 * needed > memory_budget_bytes():
+        block_processes = 1  # a second process holds blocks of its own
     report.warnings += list(part_grid.warnings)
 
     with _timed(report, "regions", progress):
@@ -241,7 +247,8 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
     with kernel_threads(ASSET_THREADS):  # detailize and mesh block by block (pipeline/chunks.py)
         detailed = detailize_and_mesh(grid, lambda g: detailizer.detailize(g, seed=asset.detailize.seed),
                                       MeshSettings.from_export(export, grid.occupancy), report.timings_s,
-                                      on_block=fine_vox.add if fine_vox is not None else None)
+                                      on_block=fine_vox.add if fine_vox is not None else None,
+                                      processes=block_processes)
     for stage in ("detailize", "mesh"):
         report.timings_s[stage] = round(report.timings_s.get(stage, 0.0), 3)
     mesh = detailed.mesh

@@ -27,8 +27,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from core.errors import MeshingError
 from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR, FineGrid, LabeledGrid
 from core.structure import iou_from_counts, structure_counts
+from pipeline.forked import CAN_FORK, ChildDied, run_with_child
 from pipeline.mesh import MeshSettings, Piece, coarse_surface_faces, mesh_piece, to_trimesh
 
 if TYPE_CHECKING:
@@ -36,7 +38,7 @@ if TYPE_CHECKING:
 
 #: Grids of at most this many coarse columns along x are detailized and meshed as one block.
 WHOLE_MAX_CELLS = 64
-#: Own coarse columns of a block when a grid is longer.
+#: Most own coarse columns of a block when a grid is longer.
 CHUNK_CELLS = 32
 #: Coarse columns of context the detailizer sees on either side of a block (cut away after).
 HALO_CELLS = 2
@@ -72,11 +74,20 @@ class DetailedMesh:
 
 
 def plan_chunks(n_x: int) -> list[Chunk]:
-    """The blocks of a grid ``n_x`` coarse columns long (one block when ``n_x ≤ WHOLE_MAX_CELLS``)."""
+    """The blocks of a grid ``n_x`` coarse columns long (one block when ``n_x ≤ WHOLE_MAX_CELLS``).
+
+    A longer grid gets an even number of blocks of at most ``CHUNK_CELLS`` columns, as equal as can be (the
+    first ``n_x mod count`` one column longer): its two halves take the same time, so two processes
+    (``detailize_and_mesh``) finish together. The plan does not depend on the number of processes.
+    """
     if n_x <= WHOLE_MAX_CELLS:
         return [Chunk(0, n_x, 0, n_x)]
-    return [Chunk(a, min(a + CHUNK_CELLS, n_x), max(a - HALO_CELLS, 0), min(a + CHUNK_CELLS + HALO_CELLS, n_x))
-            for a in range(0, n_x, CHUNK_CELLS)]
+    count = -(-n_x // CHUNK_CELLS)
+    count += count % 2
+    base, extra = divmod(n_x, count)
+    stops = np.cumsum([base + (i < extra) for i in range(count)])
+    return [Chunk(int(a), int(b), max(int(a) - HALO_CELLS, 0), min(int(b) + HALO_CELLS, n_x))
+            for a, b in zip([0, *stops[:-1]], stops)]
 
 
 def detail_shape(coarse_shape: tuple[int, int, int]) -> tuple[int, int, int]:
@@ -117,66 +128,141 @@ def merge_extras(extras: list[dict]) -> dict:
     return merged
 
 
+@dataclass
+class BlockJob:
+    """Everything a run over some of an asset's blocks needs (the same in both processes of a split run)."""
+
+    grid: LabeledGrid
+    detailize: Callable[[LabeledGrid], FineGrid]
+    settings: MeshSettings
+    chunks: list[Chunk]
+    shares: list[int | None]
+    iso: float
+    on_block: Callable[[int, np.ndarray, np.ndarray], None] | None
+
+
+@dataclass
+class BlockResult:
+    """What a run over a range of blocks gives: their pieces, Strict/Loose counts, extras and seconds."""
+
+    pieces: list[Piece]
+    counts: np.ndarray
+    extras: list[dict]
+    timings: dict[str, float]
+
+
+def run_blocks(job: BlockJob, blocks: range,
+               send_head: Callable[[tuple[np.ndarray, np.ndarray]], None] | None = None,
+               receive_next_head: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None) -> BlockResult:
+    """Detailize and mesh ``blocks`` (consecutive indices into ``job.chunks``), in order.
+
+    A block is meshed once the next block's first fine columns are known. The first block's
+    first columns go to ``send_head`` (its left neighbour's mesh needs them, in another process); the
+    last block's right neighbour, when it lies outside ``blocks``, gives its columns through
+    ``receive_next_head``.
+    """
+    f = UPSAMPLE_FACTOR
+    grid, chunks, settings = job.grid, job.chunks, job.settings
+    shared = settings.sample_step  # the samples on a shared plane average this many fine columns
+    out = BlockResult([], np.zeros(3, dtype=np.int64), [], {})
+    held = None  # (index, own field, own styles) of the block waiting for its right neighbour's first columns
+
+    def add(key: str, start: float) -> None:
+        out.timings[key] = out.timings.get(key, 0.0) + time.perf_counter() - start
+
+    def mesh_held(head: tuple[np.ndarray, np.ndarray] | None) -> None:
+        k, field, style = held
+        start = time.perf_counter()
+        if head is not None:
+            field = np.concatenate([field, head[0][:shared]])
+            style = np.concatenate([style, head[1][:shared]])
+        lo, hi = max(chunks[k].start - 1, 0), min(chunks[k].stop + 1, grid.shape[0])  # a column of context
+        piece = mesh_piece(field, style if settings.vertex_colors else None, grid.style_names, settings,
+                           job.shares[k], x_offset=chunks[k].start * f, open_x=(k > 0, head is not None),
+                           iso=job.iso, coarse=grid.occupancy[lo:hi], coarse_x0=(lo - chunks[k].start) * f)
+        if piece is not None:
+            out.pieces.append(piece)
+        add("mesh", start)
+
+    for k in blocks:
+        chunk = chunks[k]
+        start = time.perf_counter()
+        fine = job.detailize(chunk_grid(grid, chunk.lo, chunk.hi) if len(chunks) > 1 else grid)
+        own = slice((chunk.start - chunk.lo) * f, (chunk.stop - chunk.lo) * f)
+        field, style = fine.occupancy[own], fine.style[own]
+        out.extras.append(fine.extras)
+        if job.on_block is not None:
+            job.on_block(chunk.start * f, field, style)
+        out.counts += structure_counts(field > job.iso, grid.occupancy[chunk.start:chunk.stop], f)
+        del fine
+        add("detailize", start)
+        if k == blocks[0] and send_head is not None:
+            send_head((field[:shared].copy(), style[:shared].copy()))
+        if held is not None:
+            mesh_held((field, style))
+        held = (k, field, style)
+    last = blocks[-1]
+    mesh_held(None if last == len(chunks) - 1 else receive_next_head())
+    return out
+
+
+def split_blocks(occupancy: np.ndarray, chunks: list[Chunk]) -> int:
+    """The first block of the second process: the split that best balances the coarse surface (the work)."""
+    per_column = coarse_surface_faces(occupancy).sum(axis=(1, 2))
+    work = np.array([per_column[c.start:c.stop].sum() for c in chunks], dtype=np.float64)
+    before = np.cumsum(work)[:-1]
+    return int(np.argmin(np.maximum(before, work.sum() - before))) + 1
+
+
 def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], FineGrid], settings: MeshSettings,
                        timings: dict[str, float] | None = None, iso: float = ISO_LEVEL,
-                       on_block: Callable[[int, np.ndarray, np.ndarray], None] | None = None) -> DetailedMesh:
+                       on_block: Callable[[int, np.ndarray, np.ndarray], None] | None = None,
+                       processes: int = 1) -> DetailedMesh:
     """Detailize ``grid`` and mesh the result, block by block along x (see the module docstring).
 
     Args:
         detailize: LabeledGrid → FineGrid (the asset's detailizer, seed bound).
-        timings: seconds spent in ``"detailize"`` and ``"mesh"`` are added here.
+        timings: seconds spent in ``"detailize"`` and ``"mesh"`` are added here. With two processes the
+            stages overlap: ``"detailize"`` is this process's own, ``"mesh"`` the rest of the wall time.
         on_block: called with (first fine column, (W, Y, Z) float32 occupancy, int16 style) of each block's own
-            columns, in order (e.g. ``pipeline/vox_export.py``'s ``FineVox.add``).
+            columns, in order (e.g. ``pipeline/vox_export.py``'s ``FineVox.add``); it runs in this process, so
+            a build with it uses one.
+        processes: 2 lets a grid of several blocks detailize and mesh its second half in a forked child
+            (``pipeline/forked.py``) while this process does the first. The output is the same bit for bit
+            (every block is computed alike; only the first columns of the child's first block cross over).
     Raises:
-        MeshingError: nothing to mesh, or a meshing step failed; a detailizer's own errors.
+        MeshingError: nothing to mesh, a meshing step failed, the block process died; a detailizer's own errors.
     """
     timings = timings if timings is not None else {}
-    f = UPSAMPLE_FACTOR
     chunks = plan_chunks(grid.shape[0])
-    shares = budget_shares(grid.occupancy, chunks, settings.max_triangles)
-    counts = np.zeros(3, dtype=np.int64)
-    extras: list[dict] = []
-    pieces: list[Piece] = []
-    held = None  # (index, own field, own styles) of the block waiting for its right neighbour's first column
-
-    def add(seconds_key: str, start: float) -> None:
-        timings[seconds_key] = timings.get(seconds_key, 0.0) + time.perf_counter() - start
-
-    def mesh_held(next_field: np.ndarray | None, next_style: np.ndarray | None) -> None:
-        k, field, style = held
+    job = BlockJob(grid, detailize, settings, chunks, budget_shares(grid.occupancy, chunks, settings.max_triangles),
+                   iso, on_block)
+    if processes >= 2 and len(chunks) >= 2 and on_block is None and CAN_FORK:
+        split = split_blocks(grid.occupancy, chunks)
         start = time.perf_counter()
-        last = next_field is None
-        if not last:
-            shared = settings.sample_step  # the samples on the shared plane average this many fine columns
-            field = np.concatenate([field, next_field[:shared]])
-            style = np.concatenate([style, next_style[:shared]])
-        piece = mesh_piece(field, style if settings.vertex_colors else None, grid.style_names, settings, shares[k],
-                           x_offset=chunks[k].start * f, open_x=(k > 0, not last), iso=iso)
-        if piece is not None:
-            pieces.append(piece)
-        add("mesh", start)
-
-    for k, chunk in enumerate(chunks):
-        start = time.perf_counter()
-        fine = detailize(chunk_grid(grid, chunk.lo, chunk.hi) if len(chunks) > 1 else grid)
-        own = slice((chunk.start - chunk.lo) * f, (chunk.stop - chunk.lo) * f)
-        field, style = fine.occupancy[own], fine.style[own]
-        extras.append(fine.extras)
-        if on_block is not None:
-            on_block(chunk.start * f, field, style)
-        coarse = grid.occupancy[chunk.start:chunk.stop]
-        counts += structure_counts(field > iso, coarse, f)
-        del fine
-        add("detailize", start)
-        if held is not None:
-            mesh_held(field, style)
-        held = (k, field, style)
-    mesh_held(None, None)
+        try:
+            first, second = run_with_child(
+                lambda send: run_blocks(job, range(split, len(chunks)), send_head=send),
+                lambda receive: run_blocks(job, range(split), receive_next_head=receive))
+        except ChildDied as exc:
+            raise MeshingError(f"detailizing and meshing the second half of the asset's blocks failed: {exc}",
+                               hint="the machine may be short of memory: close other programs or lower "
+                                    "DECOLLAGE_MEMORY_BUDGET_GB (a build then uses one process per asset)") from exc
+        wall = time.perf_counter() - start
+        own = first.timings.get("detailize", 0.0)
+        timings["detailize"] = timings.get("detailize", 0.0) + own
+        timings["mesh"] = timings.get("mesh", 0.0) + wall - own
+        runs = [first, second]
+    else:
+        runs = [run_blocks(job, range(len(chunks)))]
+        for key, seconds in runs[0].timings.items():
+            timings[key] = timings.get(key, 0.0) + seconds
 
     start = time.perf_counter()
-    mesh = to_trimesh(pieces, grid.origin_m, grid.voxel_size_m / f, settings.vertex_colors)
-    add("mesh", start)
-    strict, loose = iou_from_counts(*(int(c) for c in counts))
-    return DetailedMesh(mesh=mesh, fine_shape=tuple(n * f for n in grid.shape),
+    mesh = to_trimesh([p for r in runs for p in r.pieces], grid.origin_m, grid.voxel_size_m / UPSAMPLE_FACTOR,
+                      settings.vertex_colors)
+    timings["mesh"] = timings.get("mesh", 0.0) + time.perf_counter() - start
+    strict, loose = iou_from_counts(*(int(c) for c in sum(r.counts for r in runs)))
+    return DetailedMesh(mesh=mesh, fine_shape=tuple(n * UPSAMPLE_FACTOR for n in grid.shape),
                         structure={"strict_iou": round(strict, 4), "loose_iou": round(loose, 4)},
-                        extras=merge_extras(extras), chunks=len(chunks))
+                        extras=merge_extras([e for r in runs for e in r.extras]), chunks=len(chunks))

@@ -36,6 +36,7 @@ from enum import StrEnum
 
 from core.errors import UsageError
 from core.files import allow_commits, forbid_commits
+from pipeline.forked import available_cores
 from pipeline.workers import WorkerPool
 
 #: Seconds to wait for a cluster scheduler before giving up.
@@ -70,6 +71,8 @@ class LocalExecutor:
     def __init__(self, progress=None) -> None:
         self.progress = progress
         self.started: list[int] = []
+        #: Processes an asset may use: a long asset's blocks in two halves when a second core is free.
+        self.block_processes = min(2, available_cores())
 
     def start(self) -> None:
         """Nothing to connect to (every executor has ``start``: the build calls it before writing anything)."""
@@ -139,6 +142,7 @@ class ProcessExecutor:
             raise UsageError(f"--jobs must be at least 1, got {jobs}")
         self.jobs = jobs
         self.started: list[int] = []
+        self.block_processes = 1  # the jobs share the cores: one process per asset
 
     def start(self) -> None:
         """Workers start inside ``run``; nothing can fail before it."""
@@ -160,6 +164,7 @@ class DaskExecutor:
         self.address = address
         self.gpus_per_task = gpus_per_task
         self.started: list[int] = []
+        self.block_processes = 1  # a cluster worker's cores belong to its other tasks
         self._client = None
 
     def start(self) -> None:

@@ -28,9 +28,10 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy import ndimage
 
 from core.errors import MeshingError
-from core.grid import ISO_LEVEL, FineGrid
+from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR, FineGrid
 from core.recipe import AssetUse, ExportSettings, MeshResolution
 from pipeline.palette import palette_rgba
 from pipeline.simplify import decimate, drop_coincident_faces, split_pinches
@@ -199,7 +200,8 @@ class Piece:
 
 def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tuple[str, ...],
                settings: MeshSettings, max_triangles: int | None, x_offset: int = 0,
-               open_x: tuple[bool, bool] = (False, False), iso: float = ISO_LEVEL) -> Piece | None:
+               open_x: tuple[bool, bool] = (False, False), iso: float = ISO_LEVEL,
+               coarse: np.ndarray | None = None, coarse_x0: int = 0) -> Piece | None:
     """The surface of one block of a fine field: marching cubes, smoothing, decimation, colours.
 
     Args:
@@ -211,18 +213,24 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
         open_x: (low, high) sides along x that continue into a neighbouring block: they are neither
             cropped nor closed, and the vertices on them are kept in place by smoothing and decimation,
             so that the neighbour's piece (meshed from the same boundary samples) joins exactly.
+        coarse: bool coarse occupancy of the block's columns, with a column of context on each side where the
+            grid has one: smoothing holds its inner creases (``near_inner_creases``), and smoothed vertices
+            that left it are put back (``keep_in_cells``). ``coarse_x0``: the fine x of its first column in
+            ``occupancy``'s frame (−16 with a left context column).
     Returns:
         the ``Piece``, or None when the block holds no voxel at or above ``iso``.
     """
     step = settings.sample_step
     samples = box_average(occupancy, step)
     level = iso if step == 1 else max(iso, HALF_RES_LEVEL)
+    if step > 1:  # material thinner than a sample would vanish from the average: keep a cell's share of it
+        keep_thin_cells(samples, occupancy, step, level, iso)
     cropped = crop_padded(samples, level, open_x)
     if cropped is None:
         if step > 1 and not any(open_x) and crop_padded(occupancy, iso) is not None:
             # only features thinner than a sample (a one-voxel sheet): a whole asset meshes them at full resolution
             return mesh_piece(occupancy, style, style_names, replace(settings, sample_step=1), max_triangles,
-                              x_offset, open_x, iso)
+                              x_offset, open_x, iso, coarse, coarse_x0)
         return None
     volume, start = cropped
     verts, faces = marching_cubes(volume, level)
@@ -233,7 +241,15 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
     if step > 1:  # sample i averages fine voxels step·i … step·i + step − 1: its centre is step·i + (step − 1)/2
         verts = verts * step + (step - 1) / 2
     if settings.taubin_iterations > 0:
-        verts = taubin_smooth(verts, faces, settings.taubin_iterations, fixed, settings.taubin_max_shift)
+        hold = fixed  # a block's open sides, and the coarse shape's inner creases (rounding them fills empty cells)
+        if coarse is not None:
+            crease = near_inner_creases(verts - [coarse_x0, 0, 0], coarse)
+            hold = crease if fixed is None else (fixed | crease)
+        verts = taubin_smooth(verts, faces, settings.taubin_iterations, hold, settings.taubin_max_shift)
+        if coarse is not None:
+            verts[:, 0] -= coarse_x0
+            keep_in_cells(verts, coarse, fixed)
+            verts[:, 0] += coarse_x0
     if max_triangles is not None and len(faces) > max_triangles:
         verts, faces = decimate(verts, faces, max_triangles, lock_border=fixed is not None)
     verts[:, 0] += x_offset
@@ -242,6 +258,30 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
         local = verts - np.array([x_offset, 0.0, 0.0])
         colors = style_colors_at(local, vertex_normals(verts, faces), style, style_names)
     return Piece(verts, faces, colors)
+
+
+def keep_thin_cells(samples: np.ndarray, field: np.ndarray, step: int, level: float, iso: float) -> int:
+    """In place: in every coarse cell whose fine field reaches ``iso`` but none of whose box-averaged samples
+    reaches ``level`` (material thinner than a sample: a one-voxel stroke or sheet), a sample whose box holds a
+    voxel at or above ``iso`` becomes ``level`` + 0.01, so the cell keeps its material as a thin feature at
+    sample resolution. Sample boxes never straddle a coarse cell (``step`` divides 16). Measured (quilt, half
+    resolution, 60 000 / 30 000 triangles): coarse cells without material in the re-voxelized mesh,
+    castle_word 4 → 0, the sign "DWARF" 7 → 1. Returns how many cells it changed."""
+    f = UPSAMPLE_FACTOR
+    n = [a // f for a in field.shape]
+    if min(n) == 0:
+        return 0
+    m = f // step
+    fine = field[:n[0] * f, :n[1] * f, :n[2] * f].reshape(n[0], f, n[1], f, n[2], f)
+    has = fine.max(axis=(1, 3, 5)) >= iso
+    view = samples[:n[0] * m, :n[1] * m, :n[2] * m].reshape(n[0], m, n[1], m, n[2], m)
+    thin = has & (view.max(axis=(1, 3, 5)) < level)
+    for i, j, k in np.argwhere(thin):
+        block = fine[i, :, j, :, k, :]  # (f, f, f)
+        boxes = block.reshape(m, step, m, step, m, step).max(axis=(1, 3, 5)) >= iso
+        cell = view[i, :, j, :, k, :]
+        cell[boxes] = np.float32(level + 0.01)
+    return int(thin.sum())
 
 
 def box_average(field: np.ndarray, step: int) -> np.ndarray:
@@ -368,6 +408,83 @@ def marching_cubes(volume: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarr
     # scikit-image winds faces so that normals point down the gradient, i.e.
     # into a field that is high inside; reversing each face turns them outward.
     return verts.astype(np.float64), np.ascontiguousarray(faces[:, ::-1], dtype=np.int64)
+
+
+#: Vertices this close to an inner crease of the coarse shape are not smoothed, fine voxels (see
+#: ``near_inner_creases``; 1.5 and 3 measured alike).
+CREASE_REACH = 1.5
+
+
+def near_inner_creases(verts: np.ndarray, coarse: np.ndarray, reach: float = CREASE_REACH) -> np.ndarray:
+    """(V,) bool: vertices within ``reach`` fine voxels of an empty coarse cell that has occupied face
+    neighbours along two axes: an inner corner or edge of the coarse shape (``verts`` as in ``keep_in_cells``).
+
+    Smoothing rounds such a concave crease into a fillet, and the fillet's triangles cross the empty cell
+    between the two walls even when every vertex is put back (``keep_in_cells``): re-voxelized, the mesh
+    then holds material in a cell the coarse grid leaves empty. Holding these vertices keeps the crease
+    sharp: "ORC" at 30 000 triangles, Strict-IOU of the re-voxelized mesh 0.953 → 0.971 (unsmoothed: 0.969).
+    """
+    f = UPSAMPLE_FACTOR
+    padded = np.pad(coarse, 1)
+    axes = []
+    for a in range(3):
+        lo = np.roll(padded, 1, axis=a)[1:-1, 1:-1, 1:-1]
+        hi = np.roll(padded, -1, axis=a)[1:-1, 1:-1, 1:-1]
+        axes.append(lo | hi)
+    inner = ~coarse & ((axes[0] & axes[1]) | (axes[0] & axes[2]) | (axes[1] & axes[2]))
+    out = np.zeros(len(verts), dtype=bool)
+    if not inner.any():
+        return out
+    shape = np.array(coarse.shape)
+    cell = np.clip(np.floor((verts + 0.5) / f).astype(np.int64), 0, shape - 1)
+    near = ndimage.binary_dilation(inner, structure=np.ones((3, 3, 3), bool))  # cells a crease can reach from
+    candidates = np.flatnonzero(near[tuple(cell.T)])
+    p, c = verts[candidates], cell[candidates]
+    hit = np.zeros(len(candidates), dtype=bool)
+    for offset in np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), axis=-1).reshape(-1, 3):
+        n = c + offset
+        ok = (n >= 0).all(axis=1) & (n < shape).all(axis=1)
+        ok[ok] = inner[tuple(n[ok].T)]
+        q = np.clip(p, n * f - 0.5, n * f + f - 0.5)
+        hit |= ok & (((q - p) ** 2).sum(axis=1) <= reach * reach)
+    out[candidates] = hit
+    return out
+
+
+def keep_in_cells(verts: np.ndarray, coarse: np.ndarray, fixed: np.ndarray | None = None) -> int:
+    """Move vertices lying in an empty coarse cell to the nearest point of an occupied neighbour cell, in place.
+
+    ``verts`` (V, 3) in fine voxel units of the grid ``coarse`` (X, Y, Z) bool covers (voxel centre i at i, so
+    cell c spans [16c − 0.5, 16c + 15.5] per axis). Smoothing (and at half resolution, the box average) can
+    push a surface half a voxel or more out of the coarse shape, where re-voxelizing the mesh then finds
+    material in an empty cell (Strict-IOU); decimation only keeps vertices, so putting them back before it is
+    enough for vertices (a decimated triangle can still cut an inner corner). Vertices with no occupied
+    neighbour cell, and ``fixed`` ones (a block's open side), stay. Returns how many moved.
+    """
+    f = UPSAMPLE_FACTOR
+    shape = np.array(coarse.shape)
+    cell = np.floor((verts + 0.5) / f).astype(np.int64)
+    inside = (cell >= 0).all(axis=1) & (cell < shape).all(axis=1)
+    out = ~inside
+    out[inside] = ~coarse[tuple(cell[inside].T)]
+    if fixed is not None:
+        out &= ~fixed
+    bad = np.flatnonzero(out)
+    if len(bad) == 0:
+        return 0
+    p, c = verts[bad], cell[bad]
+    best, best_d = p.copy(), np.full(len(bad), np.inf)
+    for offset in np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), axis=-1).reshape(-1, 3):
+        n = c + offset
+        ok = (n >= 0).all(axis=1) & (n < shape).all(axis=1)
+        ok[ok] = coarse[tuple(n[ok].T)]
+        q = np.clip(p, n * f - 0.5, n * f + f - 0.5)
+        d = ((q - p) ** 2).sum(axis=1)
+        better = ok & (d < best_d)
+        best[better], best_d[better] = q[better], d[better]
+    moved = np.isfinite(best_d)
+    verts[bad[moved]] = best[moved]
+    return int(moved.sum())
 
 
 def taubin_smooth(verts: np.ndarray, faces: np.ndarray, iterations: int, fixed: np.ndarray | None = None,

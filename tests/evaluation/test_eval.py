@@ -293,6 +293,9 @@ def test_bench_measures_in_a_child_and_formats(tmp_path):
     md = bench_markdown(machine_info(), [r], assets, train, "random-lean", reference)
     assert "| upsample (baseline) | cpu | 1 |" in md and "| r.yaml | a | upsample | 256×128×64 |" in md
     assert "| 3.00 | 12.0 | 1234 | 200 |" in md and "0.250 s" in md  # total, × reference, triangles, GLB KB
+    # a row's own reference (timed around that asset's builds) wins over the run's
+    md = bench_markdown(machine_info(), [r], [{**assets[0], "reference_s": 0.3}], train, "random-lean", reference)
+    assert "| 3.00 | 10.0 | 1234 | 200 |" in md
     assert "| early (4 reconstruction steps + 1 adversarial) | 5.25 |" in md and "cores" in md
 
 

@@ -46,9 +46,12 @@ def small_blocks(monkeypatch):
 def test_plan_covers_the_columns_once_with_a_halo(small_blocks):
     assert plan_chunks(16) == [Chunk(0, 16, 0, 16)]
     plan = plan_chunks(40)
-    assert [(c.start, c.stop) for c in plan] == [(0, 12), (12, 24), (24, 36), (36, 40)]
-    assert [(c.lo, c.hi) for c in plan] == [(0, 14), (10, 26), (22, 38), (34, 40)]
-    assert chunks.detail_shape((40, 4, 3)) == (16, 4, 3)
+    # ⌈40 / 12⌉ = 4 blocks (an even count), as equal as can be
+    assert [(c.start, c.stop) for c in plan] == [(0, 10), (10, 20), (20, 30), (30, 40)]
+    assert [(c.lo, c.hi) for c in plan] == [(0, 12), (8, 22), (18, 32), (28, 40)]
+    assert chunks.detail_shape((40, 4, 3)) == (14, 4, 3)
+    # ⌈25 / 12⌉ = 3 blocks, made 4 so that two processes get halves of the same size; 25 = 7 + 6 + 6 + 6
+    assert [(c.start, c.stop) for c in plan_chunks(25)] == [(0, 7), (7, 13), (13, 19), (19, 25)]
 
 
 @pytest.mark.parametrize("step", [1, 2])
@@ -87,8 +90,45 @@ def test_budget_follows_the_coarse_surface(small_blocks):
     plan = plan_chunks(grid.shape[0])
     shares = budget_shares(grid.occupancy, plan, 10_000)
     assert sum(shares) <= 10_000
-    assert shares[-1] < shares[0]  # the last block has 4 columns, the first 12
+    surface = [chunks.coarse_surface_faces(grid.occupancy[c.start:c.stop]).sum() for c in plan]
+    assert np.argmax(shares) == np.argmax(surface) and np.argmin(shares) == np.argmin(surface)
     assert budget_shares(grid.occupancy, plan, None) == [None] * 4
+
+
+def test_two_processes_give_the_same_mesh_bit_for_bit(small_blocks):
+    grid = bar_grid(45)
+    settings = MeshSettings(max_triangles=5000, taubin_iterations=3)
+    one_t: dict[str, float] = {}
+    two_t: dict[str, float] = {}
+    one = detailize_and_mesh(grid, local_detailizer, settings, one_t, processes=1)
+    two = detailize_and_mesh(grid, local_detailizer, settings, two_t, processes=2)
+    assert one.chunks == two.chunks == 4
+    assert np.array_equal(one.mesh.vertices, two.mesh.vertices) and np.array_equal(one.mesh.faces, two.mesh.faces)
+    assert np.array_equal(one.mesh.visual.vertex_colors, two.mesh.visual.vertex_colors)
+    assert one.structure == two.structure and one.extras == two.extras
+    assert set(two_t) == {"detailize", "mesh"} and all(t > 0 for t in two_t.values())
+
+
+def test_the_split_balances_the_blocks_work():
+    occ = np.zeros((40, 4, 4), bool)
+    occ[:, 1:3, 1:3] = True
+    plan = [Chunk(0, 10, 0, 12), Chunk(10, 20, 8, 22), Chunk(20, 30, 18, 32), Chunk(30, 40, 28, 40)]
+    assert chunks.split_blocks(occ, plan) == 2
+    occ[:10] = True  # the first block holds most of the surface
+    assert chunks.split_blocks(occ, plan) == 1
+
+
+def test_an_error_in_the_second_process_is_raised_as_itself(small_blocks):
+    from core.errors import DetailizeError
+
+    def failing(grid: LabeledGrid) -> FineGrid:
+        if grid.origin_m[0] > 2.0:  # blocks of the second half
+            raise DetailizeError("no exemplar for style 'slate'", field="regions", hint="add one")
+        return local_detailizer(grid)
+
+    with pytest.raises(DetailizeError, match="no exemplar for style 'slate'") as caught:
+        detailize_and_mesh(bar_grid(45), failing, MeshSettings(max_triangles=None), processes=2)
+    assert caught.value.field == "regions" and caught.value.hint == "add one"
 
 
 def test_extras_of_blocks_are_merged():
@@ -106,11 +146,11 @@ _PEAK_RSS = """
 import json, sys
 sys.argv = ["decollage", *sys.argv[1:]]
 from cli.app import main
-from core.processes import own_peak_rss_mb
+from core.processes import children_peak_rss_mb, own_peak_rss_mb
 try:
     main()
 finally:
-    print(json.dumps({"peak_mb": own_peak_rss_mb()}), file=sys.stderr)
+    print(json.dumps({"peak_mb": own_peak_rss_mb() + children_peak_rss_mb()}), file=sys.stderr)
 """
 
 

@@ -215,11 +215,47 @@ def test_box_average_is_the_mean_of_each_box_and_pads_with_zeros():
     np.testing.assert_array_equal(box_average(field[2:], 2), out[1:])
 
 
+def test_smoothed_vertices_stay_in_the_coarse_cells_and_inner_creases_stay_sharp():
+    from pipeline.mesh import keep_in_cells, near_inner_creases
+
+    # an L of three cells (0,0,0), (1,0,0), (0,1,0): cell (1,1,0) is the empty inner corner
+    coarse = np.zeros((2, 2, 1), bool)
+    coarse[0, 0, 0] = coarse[1, 0, 0] = coarse[0, 1, 0] = True
+    verts = np.array([[21.0, 20.0, 5.0],   # inside the empty corner cell, nearer the face y = 15.5
+                      [5.0, 5.0, 5.0],     # inside an occupied cell
+                      [40.0, 5.0, 5.0],    # beyond the grid next to cell (1, 0, 0)
+                      [18.0, 18.0, 5.0]])  # in the empty cell, locked
+    fixed = np.array([False, False, False, True])
+    moved = keep_in_cells(verts, coarse, fixed)
+    assert moved == 2
+    np.testing.assert_allclose(verts[0], [21.0, 15.5, 5.0])  # onto the nearest occupied cell's face
+    np.testing.assert_allclose(verts[1], [5.0, 5.0, 5.0])
+    np.testing.assert_allclose(verts[2], [31.5, 5.0, 5.0])
+    np.testing.assert_allclose(verts[3], [18.0, 18.0, 5.0])
+    crease = near_inner_creases(np.array([[16.0, 14.8, 5.0], [16.0, 10.0, 5.0], [5.0, 5.0, 5.0]]), coarse)
+    assert crease.tolist() == [True, False, False]  # within 1.5 voxels of the corner cell only
+
+
+def test_half_resolution_keeps_material_thinner_than_a_sample():
+    from pipeline.mesh import keep_thin_cells
+
+    field = np.zeros((32, 16, 16), np.float32)
+    field[3:13, 7, 7] = 1.0  # a one-voxel stroke in cell (0, 0, 0): its 2³ box averages are 0.25
+    field[16:32, :, :] = 1.0  # cell (1, 0, 0) is solid
+    samples = box_average(field, 2)
+    assert samples[:8].max() < 0.499
+    assert keep_thin_cells(samples, field, 2, 0.499, 0.4) == 1  # only the thin cell
+    kept = samples[:8] >= 0.499
+    assert kept.sum() == 6 and kept[1:7, 3, 3].all()  # voxels 3..12 lie in boxes 1..6
+    assert (samples[8:] == 1.0).all()  # the solid cell is as it was
+
+
 def test_auto_mesh_resolution_follows_the_budget():
-    bar = np.zeros((40, 3, 3), bool)
-    bar[:, 1, 1] = True  # 4 · 40 + 2 = 162 exposed coarse faces: about 83 000 full-resolution triangles
-    faces = FULL_RES_FACES_PER_COARSE_FACE * 162
+    bar = np.zeros((80, 3, 3), bool)
+    bar[:, 1, 1] = True  # 4 · 80 + 2 = 322 exposed coarse faces: about 165 000 full-resolution triangles
+    faces = FULL_RES_FACES_PER_COARSE_FACE * 322
     assert mesh_sample_step(MeshResolution.AUTO, faces // HALF_RES_FACE_RATIO, bar) == 2
+
     assert mesh_sample_step(MeshResolution.AUTO, faces // HALF_RES_FACE_RATIO + 1, bar) == 1
     assert mesh_sample_step(MeshResolution.AUTO, None, bar) == 1  # no budget: nothing to lose
     assert mesh_sample_step(MeshResolution.FULL, 10, bar) == 1
