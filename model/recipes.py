@@ -87,4 +87,3 @@ def recipe_configs(name: str, cfg: ModelConfig, tcfg: TrainConfig) -> tuple[Mode
     if name not in RECIPES:
         raise KeyError(f"unknown recipe {name!r}; known: {', '.join(RECIPES)}")
     return RECIPES[name][1](cfg, tcfg)
-
