@@ -437,16 +437,25 @@ def near_inner_creases(verts: np.ndarray, coarse: np.ndarray, reach: float = CRE
         return out
     shape = np.array(coarse.shape)
     cell = np.clip(np.floor((verts + 0.5) / f).astype(np.int64), 0, shape - 1)
-    near = ndimage.binary_dilation(inner, structure=np.ones((3, 3, 3), bool))  # cells a crease can reach from
-    candidates = np.flatnonzero(near[tuple(cell.T)])
-    p, c = verts[candidates], cell[candidates]
+    # per cell, which of its 27 neighbourhood cells (itself included) is an inner crease cell: 27 bits
+    padded_inner = np.pad(inner, 1)
+    offsets = np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), axis=-1).reshape(-1, 3)
+    bits = np.zeros(coarse.shape, dtype=np.int64)
+    for b, (i, j, k) in enumerate(offsets + 1):
+        bits |= padded_inner[i:i + shape[0], j:j + shape[1], k:k + shape[2]].astype(np.int64) << b
+    mask = bits[tuple(cell.T)]
+    candidates = np.flatnonzero(mask)  # vertices in a cell next to (or in) a crease cell: few
+    if len(candidates) == 0:
+        return out
+    local = verts[candidates] + 0.5 - cell[candidates] * f  # in [0, f) inside the cell (beyond the grid: outside)
+    # squared distance along each axis to the neighbour box at offset −1, 0, +1 (0 inside the own slab)
+    gap = np.stack([np.maximum(local, 0.0), np.maximum(-local, np.maximum(local - f, 0.0)),
+                    np.maximum(f - local, 0.0)], axis=-1) ** 2  # (n, 3 axes, 3 offsets)
     hit = np.zeros(len(candidates), dtype=bool)
-    for offset in np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), axis=-1).reshape(-1, 3):
-        n = c + offset
-        ok = (n >= 0).all(axis=1) & (n < shape).all(axis=1)
-        ok[ok] = inner[tuple(n[ok].T)]
-        q = np.clip(p, n * f - 0.5, n * f + f - 0.5)
-        hit |= ok & (((q - p) ** 2).sum(axis=1) <= reach * reach)
+    for b, (i, j, k) in enumerate(offsets + 1):
+        has = (mask[candidates] >> b) & 1 == 1
+        if has.any():
+            hit |= has & (gap[:, 0, i] + gap[:, 1, j] + gap[:, 2, k] <= reach * reach)
     out[candidates] = hit
     return out
 
