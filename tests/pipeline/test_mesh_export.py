@@ -26,6 +26,7 @@ from core.grid import FineGrid
 from pipeline.mesh import (
     FULL_RES_FACES_PER_COARSE_FACE,
     HALF_RES_FACE_RATIO,
+    HALF_RES_LEVEL,
     MeshSettings,
     box_average,
     mesh_fine_grid,
@@ -192,7 +193,9 @@ def test_half_resolution_meshes_the_same_sphere_with_a_quarter_of_the_triangles(
     full_radius = np.linalg.norm(sphere_mesh.vertices - CENTRE, axis=1)
     assert abs(radius.mean() - full_radius.mean()) < 0.25 * VOXEL
     assert np.abs(half.bounds.mean(axis=0) - CENTRE).max() < 0.1 * VOXEL
-    assert half.volume == pytest.approx(sphere_mesh.volume, rel=0.03)
+    # HALF_RES_LEVEL 0.55 puts the surface ~0.1 voxel inside the voxel boundary, the full-resolution ISO_LEVEL
+    # 0.4 ~0.1 voxel outside it: on this 16-voxel sphere the volumes differ by 3 × 0.2 / 16 ≈ 4 %
+    assert 0.93 < half.volume / sphere_mesh.volume < 0.99
 
 
 def test_a_shape_thinner_than_a_half_resolution_sample_is_meshed_at_full_resolution():
@@ -243,9 +246,9 @@ def test_half_resolution_keeps_material_thinner_than_a_sample():
     field[3:13, 7, 7] = 1.0  # a one-voxel stroke in cell (0, 0, 0): its 2³ box averages are 0.25
     field[16:32, :, :] = 1.0  # cell (1, 0, 0) is solid
     samples = box_average(field, 2)
-    assert samples[:8].max() < 0.499
-    assert keep_thin_cells(samples, field, 2, 0.499, 0.4) == 1  # only the thin cell
-    kept = samples[:8] >= 0.499
+    assert samples[:8].max() < HALF_RES_LEVEL
+    assert keep_thin_cells(samples, field, 2, HALF_RES_LEVEL, 0.4) == 1  # only the thin cell
+    kept = samples[:8] >= HALF_RES_LEVEL
     assert kept.sum() == 6 and kept[1:7, 3, 3].all()  # voxels 3..12 lie in boxes 1..6
     assert (samples[8:] == 1.0).all()  # the solid cell is as it was
 
