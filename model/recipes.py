@@ -26,7 +26,7 @@ a resume must name the same one.
   targets exactly (0.853 with the thin cells only), and the same step-3,000 ``warmup``
   weights score 0.580 with the old projection, 0.739 without any. Because training is
   identical, a ``warmup`` training state continues as ``warmup_thin``
-  (``scripts/rerecipe_state.py``).
+  (``scripts/rerecipe_state.py``, ``model/recipe_move.py``).
 - ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
   target the example-based ``quilt`` detailizer's output on an augmented training content
   (new shapes, a random style per part) instead of an exemplar as itself
@@ -87,30 +87,3 @@ def recipe_configs(name: str, cfg: ModelConfig, tcfg: TrainConfig) -> tuple[Mode
     if name not in RECIPES:
         raise KeyError(f"unknown recipe {name!r}; known: {', '.join(RECIPES)}")
     return RECIPES[name][1](cfg, tcfg)
-
-
-def move_state_recipe(ck, name: str):
-    """A training checkpoint (``model.checkpoint.Checkpoint``) moved to recipe ``name``, when that trains the same model.
-
-    Both recipes are applied to the lean layout of the state's size and a default
-    ``TrainConfig``: they must differ only in ``INFERENCE_ONLY_FIELDS``; the state keeps its
-    weights, optimizers, RNG and step and takes the new recipe's values of those fields and
-    its name. Raises ValueError (unknown recipe, or the recipes train differently).
-    """
-    from model.train import TrainConfig
-
-    old = ck.training.get("recipe", "reference")
-    if name not in RECIPES or old not in RECIPES:
-        raise ValueError(f"unknown recipe {name if name not in RECIPES else old!r}")
-    base = ModelConfig.lean(ck.config.n_parts, ck.config.n_styles)
-    t0 = TrainConfig(out_dir="unused", steps=0)
-    m_old, t_old = recipe_configs(old, base, t0)
-    m_new, t_new = recipe_configs(name, base, t0)
-    differ = [f.name for f in dataclasses.fields(m_old) if getattr(m_old, f.name) != getattr(m_new, f.name)]
-    if set(differ) - set(INFERENCE_ONLY_FIELDS) or t_old != t_new:
-        raise ValueError(f"recipes {old!r} and {name!r} train differently ({differ or 'TrainConfig'})")
-    config = dataclasses.replace(ck.config, **{f: getattr(m_new, f) for f in INFERENCE_ONLY_FIELDS})
-    training = {**ck.training, "recipe": name, "recipe_moved_from": {"recipe": old, "step": ck.training.get("step")}}
-    if isinstance(training.get("train_config"), dict):
-        training["train_config"] = {**training["train_config"], "recipe": name}
-    return dataclasses.replace(ck, config=config, training=training)

@@ -16,7 +16,7 @@ import dataclasses
 import sys
 
 from model.checkpoint import load_checkpoint, save_checkpoint
-from model.recipes import move_state_recipe
+from model.recipe_move import move_state_recipe
 
 
 def main() -> None:

@@ -203,7 +203,8 @@ def test_monitor_with_one_style_and_the_raw_self_iou():
 
 def test_a_warmup_state_moves_to_warmup_thin_and_resumes(tmp_path):
     from model.checkpoint import save_checkpoint
-    from model.recipes import move_state_recipe, recipe_configs
+    from model.recipe_move import move_state_recipe
+    from model.recipes import recipe_configs
 
     cfg_w, t_w = recipe_configs("warmup", _cfg(), _tcfg(tmp_path, 1, recipe="warmup"))
     res = train(EXS, cfg_w, t_w, resume=False)
