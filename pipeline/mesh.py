@@ -203,7 +203,7 @@ class Piece:
 def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tuple[str, ...],
                settings: MeshSettings, max_triangles: int | None, x_offset: int = 0,
                open_x: tuple[bool, bool] = (False, False), iso: float = ISO_LEVEL,
-               coarse: np.ndarray | None = None, coarse_x0: int = 0) -> Piece | None:
+               coarse: np.ndarray | None = None, coarse_x0: int = 0, confined: bool = False) -> Piece | None:
     """The surface of one block of a fine field: marching cubes, smoothing, decimation, colours.
 
     Args:
@@ -217,8 +217,11 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
             so that the neighbour's piece (meshed from the same boundary samples) joins exactly.
         coarse: bool coarse occupancy of the block's columns, with a column of context on each side where the
             grid has one: smoothing holds its inner creases (``near_inner_creases``), and smoothed vertices
-            that left it are put back (``keep_in_cells``). ``coarse_x0``: the fine x of its first column in
-            ``occupancy``'s frame (−16 with a left context column).
+            that left it are put back (``keep_in_cells``) when ``confined``. ``coarse_x0``: the fine x of its
+            first column in ``occupancy``'s frame (−16 with a left context column). ``confined``: the field has
+            no voxel at or above ``iso`` in an empty coarse cell (quilt, upsample): then smoothed vertices
+            that left the occupied cells are put back; a field that spills over (a learned model's) is its
+            output, and moving its vertices onto cell faces would crumple it.
     Returns:
         the ``Piece``, or None when the block holds no voxel at or above ``iso``.
     """
@@ -232,7 +235,7 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
         if step > 1 and not any(open_x) and crop_padded(occupancy, iso) is not None:
             # only features thinner than a sample (a one-voxel sheet): a whole asset meshes them at full resolution
             return mesh_piece(occupancy, style, style_names, replace(settings, sample_step=1), max_triangles,
-                              x_offset, open_x, iso, coarse, coarse_x0)
+                              x_offset, open_x, iso, coarse, coarse_x0, confined)
         return None
     volume, start = cropped
     verts, faces = marching_cubes(volume, level)
@@ -248,7 +251,7 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
             crease = near_inner_creases(verts - [coarse_x0, 0, 0], coarse)
             hold = crease if fixed is None else (fixed | crease)
         verts = taubin_smooth(verts, faces, settings.taubin_iterations, hold, settings.taubin_max_shift)
-        if coarse is not None:
+        if coarse is not None and confined:
             verts[:, 0] -= coarse_x0
             keep_in_cells(verts, coarse, fixed)
             verts[:, 0] += coarse_x0
@@ -462,6 +465,16 @@ def near_inner_creases(verts: np.ndarray, coarse: np.ndarray, reach: float = CRE
     return out
 
 
+def outside_cells(verts: np.ndarray, coarse: np.ndarray) -> np.ndarray:
+    """(V,) bool: vertices in an empty coarse cell or beyond the grid (``verts`` as in ``keep_in_cells``)."""
+    shape = np.array(coarse.shape)
+    cell = np.floor((verts + 0.5) / UPSAMPLE_FACTOR).astype(np.int64)
+    inside = (cell >= 0).all(axis=1) & (cell < shape).all(axis=1)
+    out = ~inside
+    out[inside] = ~coarse[tuple(cell[inside].T)]
+    return out
+
+
 def keep_in_cells(verts: np.ndarray, coarse: np.ndarray, fixed: np.ndarray | None = None) -> int:
     """Move vertices lying in an empty coarse cell to the nearest point of an occupied neighbour cell, in place.
 
@@ -475,9 +488,7 @@ def keep_in_cells(verts: np.ndarray, coarse: np.ndarray, fixed: np.ndarray | Non
     f = UPSAMPLE_FACTOR
     shape = np.array(coarse.shape)
     cell = np.floor((verts + 0.5) / f).astype(np.int64)
-    inside = (cell >= 0).all(axis=1) & (cell < shape).all(axis=1)
-    out = ~inside
-    out[inside] = ~coarse[tuple(cell[inside].T)]
+    out = outside_cells(verts, coarse)
     if fixed is not None:
         out &= ~fixed
     bad = np.flatnonzero(out)

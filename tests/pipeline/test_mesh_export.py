@@ -555,3 +555,18 @@ def test_mesh_stats(sphere_mesh):
     np.testing.assert_allclose(stats["bbox_min_m"], CENTRE - RADIUS, atol=VOXEL)
     np.testing.assert_allclose(stats["bbox_max_m"], CENTRE + RADIUS, atol=VOXEL)
     json.dumps(stats)  # plain JSON types only
+
+
+def test_a_field_that_spills_over_the_coarse_cells_keeps_its_shape():
+    from pipeline.mesh import mesh_piece
+
+    # a slab filling cell 0 and reaching 4 voxels into cell 1, which the coarse grid leaves empty (as a learned
+    # model's output may): its vertices are the detailizer's output and are not pushed back onto the cell face
+    field = np.zeros((32, 16, 16), np.float32)
+    field[2:20, 2:14, 2:14] = 1.0
+    coarse = np.array([True, False])[:, None, None]
+    settings = MeshSettings(max_triangles=None, taubin_iterations=8)
+    spilled = mesh_piece(field, None, ("a",), settings, None, coarse=coarse, confined=False)
+    assert spilled.vertices[:, 0].max() > 19.0
+    confined = mesh_piece(field, None, ("a",), settings, None, coarse=coarse, confined=True)
+    assert confined.vertices[:, 0].max() <= 15.5 + 1e-9  # the same call told the field is confined clamps it
