@@ -54,9 +54,16 @@ def build(recipe: Path, out: Path, *extra: str) -> dict:
 def main() -> None:
     recipe = Path(sys.argv[1]) if len(sys.argv) > 1 else REPO / "recipes" / "batch_showcase.yaml"
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    sys.path.insert(0, str(REPO))
+    from evaluation.benchmarking import reference_workload_seconds
+
+    refs = []
     with tempfile.TemporaryDirectory() as tmp:
+        refs.append(reference_workload_seconds(3)["median_s"])
         one = build(recipe, Path(tmp) / "j1", "--jobs", "1")
+        refs.append(reference_workload_seconds(3)["median_s"])
         two = build(recipe, Path(tmp) / "j2", "--jobs", "2")
+        refs.append(reference_workload_seconds(3)["median_s"])
         cached = build(recipe, Path(tmp) / "j2", "--jobs", "2")
         same = all((Path(tmp) / "j1" / f"{a['name']}.glb").read_bytes() == (Path(tmp) / "j2" / f"{a['name']}.glb").read_bytes()
                    for a in one["assets"])
@@ -64,11 +71,15 @@ def main() -> None:
     def mb(run: dict) -> str:
         return f"{run['rss']['main_mb']:.0f} | {run['rss']['worker_mb']:.0f}"
 
-    print("| run | assets | wall time (s) | peak RSS main process (MB) | peak RSS largest worker (MB) |")
-    print("|---|---|---|---|---|")
-    print(f"| --jobs 1 | {n} | {one['wall_time_s']:.1f} | {mb(one)} |")
-    print(f"| --jobs 2 | {n} | {two['wall_time_s']:.1f} | {mb(two)} |")
-    print(f"| second run (cached) | {cached['summary']['cached']} cached | {cached['wall_time_s']:.2f} | {mb(cached)} |")
+    def ratio(run: dict, before: float, after: float) -> str:
+        return f"{run['wall_time_s'] / ((before + after) / 2):.0f}"
+
+    print(f"reference workload before, between and after the builds: {', '.join(f'{r:.3f} s' for r in refs)}")
+    print("| run | assets | wall time (s) | × ref | peak RSS main process (MB) | peak RSS largest worker (MB) |")
+    print("|---|---|---|---|---|---|")
+    print(f"| --jobs 1 | {n} | {one['wall_time_s']:.1f} | {ratio(one, refs[0], refs[1])} | {mb(one)} |")
+    print(f"| --jobs 2 | {n} | {two['wall_time_s']:.1f} | {ratio(two, refs[1], refs[2])} | {mb(two)} |")
+    print(f"| second run (cached) | {cached['summary']['cached']} cached | {cached['wall_time_s']:.2f} | | {mb(cached)} |")
     print(f"\nspeed-up of --jobs 2 over --jobs 1: {one['wall_time_s'] / two['wall_time_s']:.2f}x; "
           f"cached run: {100 * cached['wall_time_s'] / two['wall_time_s']:.1f} % of the first; "
           f"GLBs byte-identical across --jobs: {same}")

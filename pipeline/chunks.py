@@ -166,6 +166,7 @@ def run_blocks(job: BlockJob, blocks: range,
     shared = settings.sample_step  # the samples on a shared plane average this many fine columns
     out = BlockResult([], np.zeros(3, dtype=np.int64), [], {})
     held = None  # (index, own field, own styles) of the block waiting for its right neighbour's first columns
+    confined: dict[int, bool] = {}
 
     def add(key: str, start: float) -> None:
         out.timings[key] = out.timings.get(key, 0.0) + time.perf_counter() - start
@@ -179,7 +180,8 @@ def run_blocks(job: BlockJob, blocks: range,
         lo, hi = max(chunks[k].start - 1, 0), min(chunks[k].stop + 1, grid.shape[0])  # a column of context
         piece = mesh_piece(field, style if settings.vertex_colors else None, grid.style_names, settings,
                            job.shares[k], x_offset=chunks[k].start * f, open_x=(k > 0, head is not None),
-                           iso=job.iso, coarse=grid.occupancy[lo:hi], coarse_x0=(lo - chunks[k].start) * f)
+                           iso=job.iso, coarse=grid.occupancy[lo:hi], coarse_x0=(lo - chunks[k].start) * f,
+                           confined=confined[k])
         if piece is not None:
             out.pieces.append(piece)
         add("mesh", start)
@@ -193,7 +195,9 @@ def run_blocks(job: BlockJob, blocks: range,
         out.extras.append(fine.extras)
         if job.on_block is not None:
             job.on_block(chunk.start * f, field, style)
-        out.counts += structure_counts(field > job.iso, grid.occupancy[chunk.start:chunk.stop], f)
+        counts = structure_counts(field > job.iso, grid.occupancy[chunk.start:chunk.stop], f)
+        out.counts += counts
+        confined[k] = counts[1] == counts[2]  # no fine voxel in an empty coarse cell
         del fine
         add("detailize", start)
         if k == blocks[0] and send_head is not None:

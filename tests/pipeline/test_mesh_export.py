@@ -26,6 +26,7 @@ from core.grid import FineGrid
 from pipeline.mesh import (
     FULL_RES_FACES_PER_COARSE_FACE,
     HALF_RES_FACE_RATIO,
+    HALF_RES_LEVEL,
     MeshSettings,
     box_average,
     mesh_fine_grid,
@@ -192,7 +193,9 @@ def test_half_resolution_meshes_the_same_sphere_with_a_quarter_of_the_triangles(
     full_radius = np.linalg.norm(sphere_mesh.vertices - CENTRE, axis=1)
     assert abs(radius.mean() - full_radius.mean()) < 0.25 * VOXEL
     assert np.abs(half.bounds.mean(axis=0) - CENTRE).max() < 0.1 * VOXEL
-    assert half.volume == pytest.approx(sphere_mesh.volume, rel=0.03)
+    # HALF_RES_LEVEL 0.55 puts the surface ~0.1 voxel inside the voxel boundary, the full-resolution ISO_LEVEL
+    # 0.4 ~0.1 voxel outside it: on this 16-voxel sphere the volumes differ by 3 × 0.2 / 16 ≈ 4 %
+    assert 0.93 < half.volume / sphere_mesh.volume < 0.99
 
 
 def test_a_shape_thinner_than_a_half_resolution_sample_is_meshed_at_full_resolution():
@@ -243,9 +246,9 @@ def test_half_resolution_keeps_material_thinner_than_a_sample():
     field[3:13, 7, 7] = 1.0  # a one-voxel stroke in cell (0, 0, 0): its 2³ box averages are 0.25
     field[16:32, :, :] = 1.0  # cell (1, 0, 0) is solid
     samples = box_average(field, 2)
-    assert samples[:8].max() < 0.499
-    assert keep_thin_cells(samples, field, 2, 0.499, 0.4) == 1  # only the thin cell
-    kept = samples[:8] >= 0.499
+    assert samples[:8].max() < HALF_RES_LEVEL
+    assert keep_thin_cells(samples, field, 2, HALF_RES_LEVEL, 0.4) == 1  # only the thin cell
+    kept = samples[:8] >= HALF_RES_LEVEL
     assert kept.sum() == 6 and kept[1:7, 3, 3].all()  # voxels 3..12 lie in boxes 1..6
     assert (samples[8:] == 1.0).all()  # the solid cell is as it was
 
@@ -552,3 +555,18 @@ def test_mesh_stats(sphere_mesh):
     np.testing.assert_allclose(stats["bbox_min_m"], CENTRE - RADIUS, atol=VOXEL)
     np.testing.assert_allclose(stats["bbox_max_m"], CENTRE + RADIUS, atol=VOXEL)
     json.dumps(stats)  # plain JSON types only
+
+
+def test_a_field_that_spills_over_the_coarse_cells_keeps_its_shape():
+    from pipeline.mesh import mesh_piece
+
+    # a slab filling cell 0 and reaching 4 voxels into cell 1, which the coarse grid leaves empty (as a learned
+    # model's output may): its vertices are the detailizer's output and are not pushed back onto the cell face
+    field = np.zeros((32, 16, 16), np.float32)
+    field[2:20, 2:14, 2:14] = 1.0
+    coarse = np.array([True, False])[:, None, None]
+    settings = MeshSettings(max_triangles=None, taubin_iterations=8)
+    spilled = mesh_piece(field, None, ("a",), settings, None, coarse=coarse, confined=False)
+    assert spilled.vertices[:, 0].max() > 19.0
+    confined = mesh_piece(field, None, ("a",), settings, None, coarse=coarse, confined=True)
+    assert confined.vertices[:, 0].max() <= 15.5 + 1e-9  # the same call told the field is confined clamps it
