@@ -415,6 +415,8 @@ def marching_cubes(volume: np.ndarray, iso: float) -> tuple[np.ndarray, np.ndarr
     return verts.astype(np.float64), np.ascontiguousarray(faces[:, ::-1], dtype=np.int64)
 
 
+#: (27, 3) offsets of a cell's 3×3×3 neighbourhood, itself included.
+_NEIGHBOURHOOD = np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), axis=-1).reshape(-1, 3)
 #: Vertices this close to an inner crease of the coarse shape are not smoothed, fine voxels (see
 #: ``near_inner_creases``; 1.5 and 3 measured alike).
 CREASE_REACH = 1.5
@@ -444,9 +446,8 @@ def near_inner_creases(verts: np.ndarray, coarse: np.ndarray, reach: float = CRE
     cell = np.clip(np.floor((verts + 0.5) / f).astype(np.int64), 0, shape - 1)
     # per cell, which of its 27 neighbourhood cells (itself included) is an inner crease cell: 27 bits
     padded_inner = np.pad(inner, 1)
-    offsets = np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), axis=-1).reshape(-1, 3)
     bits = np.zeros(coarse.shape, dtype=np.int64)
-    for b, (i, j, k) in enumerate(offsets + 1):
+    for b, (i, j, k) in enumerate(_NEIGHBOURHOOD + 1):
         bits |= padded_inner[i:i + shape[0], j:j + shape[1], k:k + shape[2]].astype(np.int64) << b
     mask = bits[tuple(cell.T)]
     candidates = np.flatnonzero(mask)  # vertices in a cell next to (or in) a crease cell: few
@@ -457,21 +458,11 @@ def near_inner_creases(verts: np.ndarray, coarse: np.ndarray, reach: float = CRE
     gap = np.stack([np.maximum(local, 0.0), np.maximum(-local, np.maximum(local - f, 0.0)),
                     np.maximum(f - local, 0.0)], axis=-1) ** 2  # (n, 3 axes, 3 offsets)
     hit = np.zeros(len(candidates), dtype=bool)
-    for b, (i, j, k) in enumerate(offsets + 1):
+    for b, (i, j, k) in enumerate(_NEIGHBOURHOOD + 1):
         has = (mask[candidates] >> b) & 1 == 1
         if has.any():
             hit |= has & (gap[:, 0, i] + gap[:, 1, j] + gap[:, 2, k] <= reach * reach)
     out[candidates] = hit
-    return out
-
-
-def outside_cells(verts: np.ndarray, coarse: np.ndarray) -> np.ndarray:
-    """(V,) bool: vertices in an empty coarse cell or beyond the grid (``verts`` as in ``keep_in_cells``)."""
-    shape = np.array(coarse.shape)
-    cell = np.floor((verts + 0.5) / UPSAMPLE_FACTOR).astype(np.int64)
-    inside = (cell >= 0).all(axis=1) & (cell < shape).all(axis=1)
-    out = ~inside
-    out[inside] = ~coarse[tuple(cell[inside].T)]
     return out
 
 
@@ -488,7 +479,9 @@ def keep_in_cells(verts: np.ndarray, coarse: np.ndarray, fixed: np.ndarray | Non
     f = UPSAMPLE_FACTOR
     shape = np.array(coarse.shape)
     cell = np.floor((verts + 0.5) / f).astype(np.int64)
-    out = outside_cells(verts, coarse)
+    inside = (cell >= 0).all(axis=1) & (cell < shape).all(axis=1)
+    out = ~inside
+    out[inside] = ~coarse[tuple(cell[inside].T)]
     if fixed is not None:
         out &= ~fixed
     bad = np.flatnonzero(out)
@@ -496,7 +489,7 @@ def keep_in_cells(verts: np.ndarray, coarse: np.ndarray, fixed: np.ndarray | Non
         return 0
     p, c = verts[bad], cell[bad]
     best, best_d = p.copy(), np.full(len(bad), np.inf)
-    for offset in np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), axis=-1).reshape(-1, 3):
+    for offset in _NEIGHBOURHOOD:
         n = c + offset
         ok = (n >= 0).all(axis=1) & (n < shape).all(axis=1)
         ok[ok] = coarse[tuple(n[ok].T)]
