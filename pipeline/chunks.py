@@ -165,14 +165,13 @@ def run_blocks(job: BlockJob, blocks: range,
     grid, chunks, settings = job.grid, job.chunks, job.settings
     shared = settings.sample_step  # the samples on a shared plane average this many fine columns
     out = BlockResult([], np.zeros(3, dtype=np.int64), [], {})
-    held = None  # (index, own field, own styles) of the block waiting for its right neighbour's first columns
-    confined: dict[int, bool] = {}
+    held = None  # (index, own field, own styles, confined) of the block waiting for its right neighbour's columns
 
     def add(key: str, start: float) -> None:
         out.timings[key] = out.timings.get(key, 0.0) + time.perf_counter() - start
 
     def mesh_held(head: tuple[np.ndarray, np.ndarray] | None) -> None:
-        k, field, style = held
+        k, field, style, confined = held
         start = time.perf_counter()
         if head is not None:
             field = np.concatenate([field, head[0][:shared]])
@@ -181,7 +180,7 @@ def run_blocks(job: BlockJob, blocks: range,
         piece = mesh_piece(field, style if settings.vertex_colors else None, grid.style_names, settings,
                            job.shares[k], x_offset=chunks[k].start * f, open_x=(k > 0, head is not None),
                            iso=job.iso, coarse=grid.occupancy[lo:hi], coarse_x0=(lo - chunks[k].start) * f,
-                           confined=confined[k])
+                           confined=confined)
         if piece is not None:
             out.pieces.append(piece)
         add("mesh", start)
@@ -197,14 +196,13 @@ def run_blocks(job: BlockJob, blocks: range,
             job.on_block(chunk.start * f, field, style)
         counts = structure_counts(field > job.iso, grid.occupancy[chunk.start:chunk.stop], f)
         out.counts += counts
-        confined[k] = counts[1] == counts[2]  # no fine voxel in an empty coarse cell
         del fine
         add("detailize", start)
         if k == blocks[0] and send_head is not None:
             send_head((field[:shared].copy(), style[:shared].copy()))
         if held is not None:
             mesh_held((field, style))
-        held = (k, field, style)
+        held = (k, field, style, counts[1] == counts[2])  # confined: no fine voxel in an empty coarse cell
     last = blocks[-1]
     mesh_held(None if last == len(chunks) - 1 else receive_next_head())
     return out
