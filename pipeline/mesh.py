@@ -216,12 +216,12 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
             cropped nor closed, and the vertices on them are kept in place by smoothing and decimation,
             so that the neighbour's piece (meshed from the same boundary samples) joins exactly.
         coarse: bool coarse occupancy of the block's columns, with a column of context on each side where the
-            grid has one: smoothing holds its inner creases (``near_inner_creases``), and smoothed vertices
-            that left it are put back (``keep_in_cells``) when ``confined``. ``coarse_x0``: the fine x of its
+            grid has one: when ``confined``, smoothing holds its inner creases (``near_inner_creases``) and
+            smoothed vertices that left it are put back (``keep_in_cells``). ``coarse_x0``: the fine x of its
             first column in ``occupancy``'s frame (−16 with a left context column). ``confined``: the field has
-            no voxel at or above ``iso`` in an empty coarse cell (quilt, upsample): then smoothed vertices
-            that left the occupied cells are put back; a field that spills over (a learned model's) is its
-            output, and moving its vertices onto cell faces would crumple it.
+            no voxel at or above ``iso`` in an empty coarse cell (quilt, upsample); a field that spills over
+            (a learned model's) is its output: moving its vertices onto cell faces would crumple it, and
+            holding its creases would only cost time (a watch round's latency).
     Returns:
         the ``Piece``, or None when the block holds no voxel at or above ``iso``.
     """
@@ -247,7 +247,7 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
         verts = verts * step + (step - 1) / 2
     if settings.taubin_iterations > 0:
         hold = fixed  # a block's open sides, and the coarse shape's inner creases (rounding them fills empty cells)
-        if coarse is not None:
+        if coarse is not None and confined:
             crease = near_inner_creases(verts - [coarse_x0, 0, 0], coarse)
             hold = crease if fixed is None else (fixed | crease)
         verts = taubin_smooth(verts, faces, settings.taubin_iterations, hold, settings.taubin_max_shift)
