@@ -49,7 +49,9 @@ def main() -> None:
         cfg = dataclasses.replace(cfg, min_fill_thin_only=True)
     gen = Generator(cfg)
     gen.load_state_dict(ck.generator)
-    aug = AugmentConfig(resolution=int(ck.training["train_config"]["resolution"]))
+    offset = ck.training["train_config"].get("style_offset")  # a fixed-offset overfit run: its offset
+    aug = AugmentConfig(resolution=int(ck.training["train_config"]["resolution"]),
+                        style_offset=tuple(offset) if offset is not None else None)
     teacher = None if a.no_quilt else QuiltTeacher(exemplars, sset)
     figures = Monitor(exemplars, cfg, aug, teacher).figures(gen, per_exemplar=a.per_exemplar)
     if a.per_exemplar:
