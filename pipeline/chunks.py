@@ -165,17 +165,24 @@ def run_blocks(job: BlockJob, blocks: range,
     grid, chunks, settings = job.grid, job.chunks, job.settings
     shared = settings.sample_step  # the samples on a shared plane average this many fine columns
     out = BlockResult([], np.zeros(3, dtype=np.int64), [], {})
-    held = None  # (index, own field, own styles, confined) of the block waiting for its right neighbour's columns
+    held = None  # (index, field, styles (own columns + right context), own width, confined) of the block waiting
+    #             for its right neighbour's columns
 
     def add(key: str, start: float) -> None:
         out.timings[key] = out.timings.get(key, 0.0) + time.perf_counter() - start
 
     def mesh_held(head: tuple[np.ndarray, np.ndarray] | None) -> None:
-        k, field, style, confined = held
+        k, field, style, width, confined = held
         start = time.perf_counter()
-        if head is not None:
-            field = np.concatenate([field, head[0][:shared]])
-            style = np.concatenate([style, head[1][:shared]])
+        if head is None:
+            field, style = field[:width], style[:width]
+        elif len(field) >= width + shared and field.flags.writeable and style.flags.writeable:
+            # the block's own right context has room: no copy of the block
+            field[width:width + shared], style[width:width + shared] = head[0][:shared], head[1][:shared]
+            field, style = field[:width + shared], style[:width + shared]
+        else:
+            field = np.concatenate([field[:width], head[0][:shared]])
+            style = np.concatenate([style[:width], head[1][:shared]])
         lo, hi = max(chunks[k].start - 1, 0), min(chunks[k].stop + 1, grid.shape[0])  # a column of context
         piece = mesh_piece(field, style if settings.vertex_colors else None, grid.style_names, settings,
                            job.shares[k], x_offset=chunks[k].start * f, open_x=(k > 0, head is not None),
@@ -196,13 +203,16 @@ def run_blocks(job: BlockJob, blocks: range,
             job.on_block(chunk.start * f, field, style)
         counts = structure_counts(field > job.iso, grid.occupancy[chunk.start:chunk.stop], f)
         out.counts += counts
+        # the held block keeps its right context columns (views), overwritten by its neighbour's first ones
+        room = slice(own.start, own.stop + shared)
+        kept = (fine.occupancy[room], fine.style[room], own.stop - own.start)
         del fine
         add("detailize", start)
         if k == blocks[0] and send_head is not None:
             send_head((field[:shared].copy(), style[:shared].copy()))
         if held is not None:
             mesh_held((field, style))
-        held = (k, field, style, counts[1] == counts[2])  # confined: no fine voxel in an empty coarse cell
+        held = (k, *kept, counts[1] == counts[2])  # confined: no fine voxel in an empty coarse cell
     last = blocks[-1]
     mesh_held(None if last == len(chunks) - 1 else receive_next_head())
     return out
