@@ -2,7 +2,9 @@
 bounded memory and take time in proportion to their length.
 
 A coarse grid at most ``WHOLE_MAX_CELLS`` columns long (every 16³ shape, a 3-letter word) is one
-block: the detailizer sees it whole. A longer one is cut into blocks of ``CHUNK_CELLS`` columns.
+block: the detailizer sees it whole (from ``MESH_SPLIT_MIN_CELLS`` columns on, that block is meshed as
+two pieces of its one field, which two processes can mesh at once). A longer one is cut into blocks of
+at most ``CHUNK_CELLS`` columns.
 Each block is detailized on its columns plus ``HALO_CELLS`` columns of context on either side (the
 detailizer sees its neighbours' shapes there; only the block's own columns are kept), then meshed
 (``pipeline/mesh.py``'s ``mesh_piece``) from its own fine columns plus the first fine column of the
@@ -254,8 +256,8 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
         on_block: called with (first fine column, (W, Y, Z) float32 occupancy, int16 style) of each block's own
             columns, in order (e.g. ``pipeline/vox_export.py``'s ``FineVox.add``); it runs in this process, so
             a build with it uses one.
-        processes: 2 lets a grid of several blocks detailize and mesh its second half in a forked child
-            (``pipeline/forked.py``) while this process does the first. The output is the same bit for bit
+        processes: 2 lets a grid of several blocks (or pieces) detailize and mesh its second half in a forked
+            child (``pipeline/forked.py``) while this process does the first. The output is the same bit for bit
             (every block is computed alike; only the first columns of the child's first block cross over).
     Raises:
         MeshingError: nothing to mesh, a meshing step failed, the block process died; a detailizer's own errors.
