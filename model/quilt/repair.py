@@ -294,15 +294,18 @@ def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, i
         frag_cells.setdefault(int(comp[i]), set()).add(int(node_cell[i]))
     removable = {c for c, cells in frag_cells.items() if all(has_main[q] for q in cells)}
     removed, changed = 0, set()
-    for q in sorted({q for c in removable for q in frag_cells[c]}):
-        block = _block(fine, content.cells[q])
-        lab, _ = ndimage.label(block >= ISO_LEVEL, structure=_SIX)
-        nodes = offsets[q] + np.arange(offsets[q + 1] - offsets[q])
-        drop = [l + 1 for l, node in enumerate(nodes) if int(comp[node]) in removable]
-        if drop:
-            block[np.isin(lab, drop)] = 0.0
-            removed += len(drop)
-            changed.add(int(q))
+    touched = np.array(sorted({q for c in removable for q in frag_cells[c]}), dtype=np.int64)
+    for a in range(0, len(touched), BATCH_CELLS):  # their blocks labelled in batches (each block on its own)
+        batch = touched[a:a + BATCH_CELLS]
+        labels, counts = block_labels(fine, content.cells[batch])
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])  # block i's local label l is first[i] + l
+        for i, q in enumerate(batch):
+            nodes = offsets[q] + np.arange(offsets[q + 1] - offsets[q])
+            drop = [first[i] + l + 1 for l, node in enumerate(nodes) if int(comp[node]) in removable]
+            if drop:
+                _block(fine, content.cells[q])[np.isin(labels[i], drop)] = 0.0
+                removed += len(drop)
+                changed.add(int(q))
     # bridges for cells without main material
     tubes = 0
     for q in np.flatnonzero(~has_main):
