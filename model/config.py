@@ -233,6 +233,12 @@ class ModelConfig:
             self-reconstruction (``scripts/selfrec_ceiling.py``: a generator that fits its targets
             exactly scores 0.548 mean IOU on 'things' with every cell raised to 0.5, 0.853 with
             the thin cells only).
+        last_hidden: 0 = the last level, when it is a head-less voxel shuffle (the lean layout),
+            is one *linear* 3×3×3 conv predicting the 8 sub-voxel occupancies of every cell of
+            its input (128³ → 256³). H > 0: a 3×3×3 conv to H channels, LeakyReLU, then a
+            1×1×1 conv to the 8 sub-voxels: a non-linearity before the finest level that still
+            runs no conv at 256³ (the capacity A/B of ``model/weights/things_selfrec.md``; the
+            halo of ``model.windows`` is unchanged). Needs such a last level.
         losses: loss weights and variants.
     """
 
@@ -252,6 +258,7 @@ class ModelConfig:
     output_mask: bool = False
     min_cell_fill: float = 0.0
     min_fill_thin_only: bool = False
+    last_hidden: int = 0
     losses: LossConfig = field(default_factory=LossConfig)
 
     def __post_init__(self) -> None:
@@ -394,6 +401,7 @@ class ModelConfig:
             output_mask=r.bool("output_mask", default=False),
             min_cell_fill=r.float("min_cell_fill", default=0.0),
             min_fill_thin_only=r.bool("min_fill_thin_only", default=False),
+            last_hidden=r.int("last_hidden", default=0),
             losses=_losses_from(r.get("losses"), f"{path}.losses"),
         )
         r.done()
@@ -471,6 +479,13 @@ def _validate(cfg: ModelConfig) -> None:
                 where,
                 "use a smaller stride at the first levels",
             )
+    if isinstance(cfg.last_hidden, bool) or not isinstance(cfg.last_hidden, int) or cfg.last_hidden < 0:
+        raise _bad(f"last_hidden must be an integer ≥ 0, got {cfg.last_hidden!r}", "last_hidden",
+                   "0 (one linear conv) or e.g. 32")
+    last = cfg.levels[-1]
+    if cfg.last_hidden and (last.upsampler is not Upsampler.VOXEL_SHUFFLE or last.head_kernel != 0):
+        raise _bad("last_hidden needs a head-less voxel-shuffle last level (the lean layout)", "last_hidden",
+                   "use 0 with this layout")
     if cfg.style_code_rms < 0:
         raise _bad("style_code_rms must be ≥ 0", "style_code_rms", "0 (free codes) or e.g. 1")
     if cfg.style_init_std < 0:
@@ -530,8 +545,8 @@ class _Reader:
         self.seen.add(key)
         return self.data[key]
 
-    def int(self, key: str) -> int:
-        v = self.get(key)
+    def int(self, key: str, default: Any = _MISSING) -> int:
+        v = self.get(key, default)
         if isinstance(v, bool) or not isinstance(v, int):
             raise _bad(f"expected an integer, got {v!r}", f"{self.path}.{key}", "use an integer")
         return v

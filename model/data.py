@@ -109,6 +109,11 @@ class AugmentConfig:
         rotate: random k·90° about +Y.
         combine_prob: probability of combining two different exemplars.
         offset_range: range of u, the second shape's x/z shift as a fraction of the first's extent.
+        style_offset: the sub-cell offset (3 ints in [0, factor), fine voxels) of every style
+            sample (``style_sample``: reconstruction steps, D's "real", the monitor's
+            exemplars); None = a random one per sample (the reference). A fixed offset makes
+            every reconstruction of an exemplar the same input and target: the overfit
+            diagnostic that separates fitting from inferring the offset from the coarse grid.
     """
 
     resolution: int = 256
@@ -118,6 +123,7 @@ class AugmentConfig:
     rotate: bool = True
     combine_prob: float = 0.5
     offset_range: tuple[float, float] = (0.3, 0.7)
+    style_offset: tuple[int, int, int] | None = None
 
     @property
     def max_side(self) -> int:
@@ -432,7 +438,8 @@ def style_sample(exemplars: Sequence[Exemplar], style: int, cfg: ModelConfig, au
                  step: int) -> Sample:
     """A style shape as itself (the reconstruction step's input and D's "real"): every part in style ``style``.
 
-    Only the base scale (R / exemplar resolution) and a random sub-cell offset are applied.
+    Only the base scale (R / exemplar resolution) and a random sub-cell offset are applied
+    (``aug.style_offset`` instead, when set).
     """
     _check_set(exemplars, cfg)
     ex = exemplars[style]
@@ -441,7 +448,13 @@ def style_sample(exemplars: Sequence[Exemplar], style: int, cfg: ModelConfig, au
     base = aug.resolution / ex.resolution
     if base != 1:
         lab = crop_to_bbox(resample_labels(lab, np.maximum(1, np.round(np.asarray(lab.shape) * base)), aug.threshold))
-    fine = place_in_crop(lab, rng, cfg.factor, min_cells=min_coarse_cells(cfg))
+    if aug.style_offset is None:
+        fine = place_in_crop(lab, rng, cfg.factor, min_cells=min_coarse_cells(cfg))
+    elif len(aug.style_offset) != 3 or not all(0 <= int(o) < cfg.factor for o in aug.style_offset):
+        raise DetailizeError(f"style_offset {aug.style_offset!r} must be 3 sub-cell offsets in [0, {cfg.factor})",
+                             field="style_offset", hint="e.g. [5, 6, 5], or null for random offsets")
+    else:
+        fine = place_at(lab, aug.style_offset, cfg.factor, min_cells=min_coarse_cells(cfg))
     return _finish(fine, (int(style),) * cfg.n_parts, (ex.name,), cfg)
 
 

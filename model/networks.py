@@ -69,13 +69,21 @@ class _Level(nn.Module):
 
     ``supervised`` False (intermediate levels without the pyramid): no side head; the
     level only passes its features on (``forward`` returns None for the occupancy).
+    ``hidden`` > 0 (voxel shuffle only; ``ModelConfig.last_hidden``): the sub-voxels are
+    predicted by a 3×3×3 conv to ``hidden`` channels, LeakyReLU and a 1×1×1 conv instead of
+    one linear 3×3×3 conv (``self.pre`` is None otherwise, and the weights' names are unchanged).
     """
 
-    def __init__(self, spec: LevelSpec, in_ch: int, slope: float, supervised: bool = True) -> None:
+    def __init__(self, spec: LevelSpec, in_ch: int, slope: float, supervised: bool = True, hidden: int = 0) -> None:
         super().__init__()
         w = spec.width
+        self.pre: nn.Module | None = None
         if spec.upsampler is Upsampler.CONV_TRANSPOSE:
             self.up: nn.Module = nn.ConvTranspose3d(in_ch, w, kernel_size=4, stride=2, padding=1)
+        elif hidden:
+            # (B, in_ch, d, h, w) → 3³ conv → (B, hidden, d, h, w) → LeakyReLU → 1³ conv → (B, 8w, d, h, w)
+            self.pre = nn.Conv3d(in_ch, hidden, kernel_size=3, padding=1)
+            self.up = nn.Conv3d(hidden, 8 * w, kernel_size=1)
         else:
             # Sub-pixel conv: a 3×3×3 conv at the input resolution predicts the 8 sub-voxels,
             # so no conv ever runs at the (8× larger) output resolution.
@@ -89,6 +97,8 @@ class _Level(nn.Module):
 
     def forward(self, x: Tensor, with_head: bool = True) -> tuple[Tensor, Tensor | None]:
         """x: (B, in_ch, d, h, w) → (features (B, width, 2d, 2h, 2w), pre-activation occupancy or None)."""
+        if self.pre is not None:
+            x = F.leaky_relu(self.pre(x), self.slope, inplace=True)
         y = self.up(x)
         if self.shuffle:
             y = voxel_shuffle(y).contiguous(memory_format=_format_of(x))
@@ -144,7 +154,9 @@ class Generator(nn.Module):
         self.backbone = nn.ModuleList(convs)
         levels, feat = [], cfg.backbone_widths[-1]
         for j, spec in enumerate(cfg.levels):
-            levels.append(_Level(spec, feat + p + z, cfg.leaky_slope, supervised=j in cfg.supervised_levels))
+            hidden = cfg.last_hidden if j == cfg.n_levels - 1 else 0
+            levels.append(_Level(spec, feat + p + z, cfg.leaky_slope, supervised=j in cfg.supervised_levels,
+                                 hidden=hidden))
             feat = spec.width
         self.levels = nn.ModuleList(levels)
 

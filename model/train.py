@@ -127,6 +127,9 @@ class TrainConfig:
             ``lr`` along a half cosine over ``warmup_iters`` (``lr`` afterwards).
         windows_per_step: fine-level windows per reconstruction step, sharing one trunk
             forward (``windows.windows_forward``); the loss is their mean.
+        style_offset: every exemplar's sub-cell offset in its reconstruction steps (3 ints in
+            [0, 16), ``AugmentConfig.style_offset``); None = random per step (the reference). The
+            monitor's exemplars then sit at the same offset (an overfit diagnostic).
         distill_frac: the fraction of reconstruction steps whose target is ``quilt``'s output on
             an augmented training content instead of an exemplar as itself
             (``model.distill``); 0 = none (the reference).
@@ -164,8 +167,11 @@ class TrainConfig:
     windows_per_step: int = 1
     monitor_every: int = 0
     distill_frac: float = 0.0
+    style_offset: tuple[int, int, int] | None = None
 
     def __post_init__(self) -> None:
+        if self.style_offset is not None:  # JSON gives a list
+            object.__setattr__(self, "style_offset", tuple(int(o) for o in self.style_offset))
         if isinstance(self.device, str) and not isinstance(self.device, Device) and self.device in set(Device):
             object.__setattr__(self, "device", Device(self.device))
         checks = (
@@ -184,6 +190,8 @@ class TrainConfig:
             (1 <= self.windows_per_step <= 16, "windows_per_step", "use 1 to 16"),
             (self.monitor_every >= 0, "monitor_every", "use 0 (never) or more"),
             (0.0 <= self.distill_frac <= 1.0, "distill_frac", "a fraction: 0 (no distillation) to 1"),
+            (self.style_offset is None or (len(self.style_offset) == 3 and min(self.style_offset) >= 0),
+             "style_offset", "3 sub-cell offsets in [0, 16), or None (random)"),
         )
         for ok, name, hint in checks:
             if not ok:
@@ -196,7 +204,7 @@ class TrainConfig:
                                  hint="use one of: " + ", ".join(ABLATIONS))
 
     def augment(self) -> AugmentConfig:
-        return AugmentConfig(resolution=self.resolution)
+        return AugmentConfig(resolution=self.resolution, style_offset=self.style_offset)
 
 
 @dataclass(frozen=True)

@@ -200,6 +200,27 @@ def test_style_sample_is_the_exemplar_itself():
     assert abs((half.fine_labels != EMPTY).sum() - occ.sum() / 8) < 0.2 * occ.sum() / 8
 
 
+def test_style_offset_fixes_the_style_sample():
+    from model.train import TrainConfig
+
+    exs, cfg = _set(), _cfg()
+    drawn = [style_sample(exs, 1, cfg, AUG, seed=0, step=k).fine_labels for k in range(4)]
+    assert any(d.shape != drawn[0].shape or not np.array_equal(d, drawn[0]) for d in drawn[1:])  # random offsets
+    fixed = dataclasses.replace(AUG, style_offset=(3, 0, 15))
+    same = [style_sample(exs, 1, cfg, fixed, seed=s, step=k).fine_labels for s, k in ((0, 0), (1, 7), (2, 99))]
+    assert all(np.array_equal(d, same[0]) for d in same[1:])
+    occ = np.argwhere(same[0] != EMPTY)
+    assert tuple(occ.min(0) % cfg.factor) == (3, 0, 15)  # the shape starts at that sub-cell offset
+    with pytest.raises(DetailizeError, match="style_offset"):
+        style_sample(exs, 1, cfg, dataclasses.replace(AUG, style_offset=(0, 16, 0)), seed=0, step=0)
+    # the training setting (a JSON list) reaches the augmentation as a tuple
+    t = TrainConfig(out_dir="unused", steps=0, resolution=64, style_offset=[3, 0, 15])
+    assert t.style_offset == (3, 0, 15) and t.augment().style_offset == (3, 0, 15)
+    assert TrainConfig(out_dir="unused", steps=0).augment().style_offset is None
+    with pytest.raises(DetailizeError, match="style_offset"):
+        TrainConfig(out_dir="unused", steps=0, style_offset=[1, 2])
+
+
 def test_progressive_smoothing_keeps_thin_parts():
     thin = np.zeros((16, 16, 16), dtype=bool)
     thin[8, 4:12, 4:12] = True  # one voxel thick plate

@@ -259,3 +259,38 @@ def test_discriminator_spec_geometry():
     assert np.array_equal([rf18.output_size(n) for n in (36, 37)], [10, 10])
     level = LevelSpec(8)
     assert level.n_convs == 1 and level.head_kernel == 3
+
+
+def test_last_hidden_puts_a_nonlinearity_before_the_last_level():
+    base = _tiny_lean()
+    cfg = dataclasses.replace(base, last_hidden=16)
+    torch.manual_seed(0)
+    lin, deep = Generator(base), Generator(cfg)
+    last_lin, last_deep = lin.levels[-1], deep.levels[-1]
+    # default: one linear 3³ conv to the 8 sub-voxels; with last_hidden: 3³ conv to H, then a 1³ conv
+    assert last_lin.pre is None and last_lin.up.kernel_size == (3, 3, 3) and last_lin.up.out_channels == 8
+    assert last_deep.pre.out_channels == 16 and last_deep.pre.kernel_size == (3, 3, 3)
+    assert last_deep.up.in_channels == 16 and last_deep.up.kernel_size == (1, 1, 1) and last_deep.up.out_channels == 8
+    assert all(a.pre is None for a in deep.levels[:-1])  # only the last level changes
+    assert count_params(deep) > count_params(lin)
+    # same output shapes; the level is no longer linear: negating its input does not negate its output
+    inp = _inputs(deep, (2, 3, 2))
+    outs = deep(*inp)
+    assert [o.shape for o in outs] == [o.shape for o in lin(*_inputs(lin, (2, 3, 2)))]
+    x = torch.randn(1, last_deep.pre.in_channels, 2, 2, 2)
+    with torch.no_grad():
+        for level in (last_lin, last_deep):
+            level.up.bias.zero_()
+            if level.pre is not None:
+                level.pre.bias.zero_()
+        assert torch.allclose(last_lin(x)[1], -last_lin(-x)[1], atol=1e-6)
+        assert not torch.allclose(last_deep(x)[1], -last_deep(-x)[1], atol=1e-3)
+    # JSON round trip; old checkpoints (no key) read as 0; refused on a layout without a shuffle last level
+    assert ModelConfig.from_dict(json.loads(json.dumps(cfg.to_dict()))) == cfg
+    old = base.to_dict()
+    old.pop("last_hidden")
+    assert ModelConfig.from_dict(old) == base and base.last_hidden == 0
+    with pytest.raises(DetailizeError, match="last_hidden"):
+        ModelConfig.paper(2, 3, last_hidden=8)
+    with pytest.raises(DetailizeError, match="last_hidden"):
+        dataclasses.replace(base, last_hidden=-1)

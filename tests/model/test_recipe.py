@@ -199,6 +199,23 @@ def test_monitor_with_one_style_and_the_raw_self_iou():
     fig_f = Monitor(one, filled, aug).figures(gen_f)
     assert fig_f["self_iou_raw"] == fig["self_iou_raw"]  # the projection is inference-only
     assert fig_f["cell_fill_min"] == 1.0 and "code_rms" in fig_f
+    assert "self_iou_raw_each" not in fig_f
+
+
+def test_monitor_per_exemplar_lists_behind_the_means():
+    from model.train import TrainConfig
+
+    aug = TrainConfig(out_dir="unused", steps=0, resolution=64).augment()
+    cfg = dataclasses.replace(ModelConfig.lean(2, 2).scaled(0.125), min_cell_fill=1.0)
+    torch.manual_seed(0)
+    gen = Generator(cfg)
+    fig = Monitor(EXS[:2], cfg, aug).figures(gen, per_exemplar=True)
+    assert len(fig["self_iou_raw_each"]) == len(fig["self_iou_each"]) == 2
+    assert abs(np.mean(fig["self_iou_raw_each"]) - fig["self_iou_raw"]) < 1e-3
+    assert abs(np.mean(fig["self_iou_each"]) - fig["self_iou"]) < 1e-3
+    assert min(fig["self_iou_each"]) == fig["self_iou_min"]
+    # a full-cell projection of an untrained field differs from the raw field
+    assert fig["self_iou_each"] != fig["self_iou_raw_each"]
 
 
 def test_a_warmup_state_moves_to_warmup_thin_and_resumes(tmp_path):
