@@ -23,6 +23,8 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 #: How often ``watch_parent`` looks at the parent process id, seconds.
 WATCH_INTERVAL_S = 0.25
@@ -134,3 +136,19 @@ def children_peak_rss_mb() -> float:
     import resource
 
     return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+
+
+@contextmanager
+def blas_threads(threads: int) -> Iterator[None]:
+    """Run the block with numpy's BLAS (OpenBLAS) limited to ``threads`` threads, process-wide.
+
+    The asset stages' matrix products are small (the quilt's ranking: a few hundred rows), and
+    OpenBLAS's helper threads cost more than they give: on the 2-core reference machine (AMD EPYC,
+    2026-12-03, runs alternated in the same minutes, ``OPENBLAS_NUM_THREADS`` 1 vs 2) castle_word built
+    in 3.82-5.38 s against 4.40-5.82 s in one process, and in 2.27-3.15 s against 2.67-3.41 s with its
+    two block processes, where two threads each oversubscribe the cores. A forked child keeps the limit.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=threads, user_api="blas"):
+        yield

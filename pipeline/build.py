@@ -29,6 +29,7 @@ from core.detailizer import effective_checkpoint, get_detailizer, kernel_threads
 from core.errors import DecollageError, RecipeError, UsageError
 from core.files import InputKind, check_input_file, sha256_file
 from core.grid import UPSAMPLE_FACTOR
+from core.processes import blas_threads
 from core.recipe import FROM_SOURCE, SOURCE_FILE_FIELDS, Asset, VoxExport
 from core.recipe_loader import LoadedRecipe
 from geometry.voxelize import mesh_grid_shape, voxelize
@@ -244,7 +245,7 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
     progress.stage("detailize")
     fine_vox = (FineVox(tuple(n * UPSAMPLE_FACTOR for n in grid.shape), grid.style_names)
                 if VoxExport.FINE in export.vox else None)  # filled block by block, as the blocks are detailized
-    with kernel_threads(ASSET_THREADS):  # detailize and mesh block by block (pipeline/chunks.py)
+    with kernel_threads(ASSET_THREADS), blas_threads(ASSET_THREADS):  # block by block (pipeline/chunks.py)
         detailed = detailize_and_mesh(grid, lambda g: detailizer.detailize(g, seed=asset.detailize.seed),
                                       MeshSettings.from_export(export, grid.occupancy), report.timings_s,
                                       on_block=fine_vox.add if fine_vox is not None else None,

@@ -2,7 +2,9 @@
 bounded memory and take time in proportion to their length.
 
 A coarse grid at most ``WHOLE_MAX_CELLS`` columns long (every 16³ shape, a 3-letter word) is one
-block: the detailizer sees it whole. A longer one is cut into blocks of ``CHUNK_CELLS`` columns.
+block: the detailizer sees it whole (from ``MESH_SPLIT_MIN_CELLS`` columns on, that block is meshed as
+two pieces of its one field, which two processes can mesh at once). A longer one is cut into blocks of
+at most ``CHUNK_CELLS`` columns.
 Each block is detailized on its columns plus ``HALO_CELLS`` columns of context on either side (the
 detailizer sees its neighbours' shapes there; only the block's own columns are kept), then meshed
 (``pipeline/mesh.py``'s ``mesh_piece``) from its own fine columns plus the first fine column of the
@@ -42,6 +44,11 @@ WHOLE_MAX_CELLS = 64
 CHUNK_CELLS = 32
 #: Coarse columns of context the detailizer sees on either side of a block (cut away after).
 HALO_CELLS = 2
+#: A grid of one block at least this many columns long is detailized whole and meshed as two pieces, split
+#: where the coarse surface balances (``mesh_halves``), so that a second process can mesh one while this one
+#: meshes the other. Every such grid is meshed so whatever the number of processes: outputs stay the same
+#: bit for bit across ``--jobs``.
+MESH_SPLIT_MIN_CELLS = 8
 
 
 @dataclass(frozen=True)
@@ -165,17 +172,24 @@ def run_blocks(job: BlockJob, blocks: range,
     grid, chunks, settings = job.grid, job.chunks, job.settings
     shared = settings.sample_step  # the samples on a shared plane average this many fine columns
     out = BlockResult([], np.zeros(3, dtype=np.int64), [], {})
-    held = None  # (index, own field, own styles, confined) of the block waiting for its right neighbour's columns
+    held = None  # (index, field, styles (own columns + right context), own width, confined) of the block waiting
+    #             for its right neighbour's columns
 
     def add(key: str, start: float) -> None:
         out.timings[key] = out.timings.get(key, 0.0) + time.perf_counter() - start
 
     def mesh_held(head: tuple[np.ndarray, np.ndarray] | None) -> None:
-        k, field, style, confined = held
+        k, field, style, width, confined = held
         start = time.perf_counter()
-        if head is not None:
-            field = np.concatenate([field, head[0][:shared]])
-            style = np.concatenate([style, head[1][:shared]])
+        if head is None:
+            field, style = field[:width], style[:width]
+        elif len(field) >= width + shared and field.flags.writeable and style.flags.writeable:
+            # the block's own right context has room: no copy of the block
+            field[width:width + shared], style[width:width + shared] = head[0][:shared], head[1][:shared]
+            field, style = field[:width + shared], style[:width + shared]
+        else:
+            field = np.concatenate([field[:width], head[0][:shared]])
+            style = np.concatenate([style[:width], head[1][:shared]])
         lo, hi = max(chunks[k].start - 1, 0), min(chunks[k].stop + 1, grid.shape[0])  # a column of context
         piece = mesh_piece(field, style if settings.vertex_colors else None, grid.style_names, settings,
                            job.shares[k], x_offset=chunks[k].start * f, open_x=(k > 0, head is not None),
@@ -196,16 +210,29 @@ def run_blocks(job: BlockJob, blocks: range,
             job.on_block(chunk.start * f, field, style)
         counts = structure_counts(field > job.iso, grid.occupancy[chunk.start:chunk.stop], f)
         out.counts += counts
+        # the held block keeps its right context columns (views), overwritten by its neighbour's first ones
+        room = slice(own.start, own.stop + shared)
+        kept = (fine.occupancy[room], fine.style[room], own.stop - own.start)
         del fine
         add("detailize", start)
         if k == blocks[0] and send_head is not None:
             send_head((field[:shared].copy(), style[:shared].copy()))
         if held is not None:
             mesh_held((field, style))
-        held = (k, field, style, counts[1] == counts[2])  # confined: no fine voxel in an empty coarse cell
+        held = (k, *kept, counts[1] == counts[2])  # confined: no fine voxel in an empty coarse cell
     last = blocks[-1]
     mesh_held(None if last == len(chunks) - 1 else receive_next_head())
     return out
+
+
+def mesh_halves(occupancy: np.ndarray) -> list[Chunk]:
+    """Two pieces of one detailized block (both detailized on all columns): the split column balances the
+    coarse surface (the meshing work) on its two sides."""
+    n_x = occupancy.shape[0]
+    per_column = coarse_surface_faces(occupancy).sum(axis=(1, 2)).astype(np.float64)
+    before = np.cumsum(per_column)[:-1]  # surface left of split 1 … n_x − 1
+    split = int(np.argmin(np.maximum(before, per_column.sum() - before))) + 1
+    return [Chunk(0, split, 0, n_x), Chunk(split, n_x, 0, n_x)]
 
 
 def split_blocks(occupancy: np.ndarray, chunks: list[Chunk]) -> int:
@@ -229,14 +256,23 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
         on_block: called with (first fine column, (W, Y, Z) float32 occupancy, int16 style) of each block's own
             columns, in order (e.g. ``pipeline/vox_export.py``'s ``FineVox.add``); it runs in this process, so
             a build with it uses one.
-        processes: 2 lets a grid of several blocks detailize and mesh its second half in a forked child
-            (``pipeline/forked.py``) while this process does the first. The output is the same bit for bit
+        processes: 2 lets a grid of several blocks (or pieces) detailize and mesh its second half in a forked
+            child (``pipeline/forked.py``) while this process does the first. The output is the same bit for bit
             (every block is computed alike; only the first columns of the child's first block cross over).
     Raises:
         MeshingError: nothing to mesh, a meshing step failed, the block process died; a detailizer's own errors.
     """
     timings = timings if timings is not None else {}
     chunks = plan_chunks(grid.shape[0])
+    blocks = len(chunks)  # detailized apart
+    if len(chunks) == 1 and grid.shape[0] >= MESH_SPLIT_MIN_CELLS:
+        start = time.perf_counter()
+        whole = detailize(grid)
+        timings["detailize"] = timings.get("detailize", 0.0) + time.perf_counter() - start
+        chunks = mesh_halves(grid.occupancy)
+
+        def detailize(_columns: LabeledGrid) -> FineGrid:  # both pieces are columns of the one field
+            return whole
     job = BlockJob(grid, detailize, settings, chunks, budget_shares(grid.occupancy, chunks, settings.max_triangles),
                    iso, on_block)
     if processes >= 2 and len(chunks) >= 2 and on_block is None and CAN_FORK:
@@ -267,4 +303,4 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
     strict, loose = iou_from_counts(*(int(c) for c in sum(r.counts for r in runs)))
     return DetailedMesh(mesh=mesh, fine_shape=tuple(n * UPSAMPLE_FACTOR for n in grid.shape),
                         structure={"strict_iou": round(strict, 4), "loose_iou": round(loose, 4)},
-                        extras=merge_extras([e for r in runs for e in r.extras]), chunks=len(chunks))
+                        extras=merge_extras([e for r in runs for e in r.extras]), chunks=blocks)

@@ -115,27 +115,58 @@ _FACE_INDEX = [(slice(None), 0), (slice(None), -1), (slice(None), slice(None), 0
                (Ellipsis, 0), (Ellipsis, -1)]
 
 
-def fine_components(fine: np.ndarray, content: Cells, empty: bool = False):
+@dataclass(eq=False)
+class BlockParts:
+    """Each occupied cell's block split into its 6-connected components (``block_labels``), kept per cell.
+
+    ``count`` (n,) int64 components per cell; ``faces`` (n, 6, CELL, CELL) int32 the six face layers' local
+    labels (1 … count, 0 outside the mask; faces in ``DIRS`` order); ``sizes`` per cell its components'
+    voxel counts. ``refresh`` relabels only the cells a repair round changed, so later rounds cost what
+    they changed, not the whole grid.
+    """
+
+    count: np.ndarray
+    faces: np.ndarray
+    sizes: list[np.ndarray]
+    empty: bool
+
+    @classmethod
+    def of(cls, fine: np.ndarray, content: Cells, empty: bool = False) -> "BlockParts":
+        n = len(content)
+        parts = cls(np.zeros(n, dtype=np.int64), np.zeros((n, 6, CELL, CELL), dtype=np.int32), [None] * n, empty)
+        parts.refresh(fine, content, np.arange(n))
+        return parts
+
+    def refresh(self, fine: np.ndarray, content: Cells, cells: np.ndarray) -> None:
+        """Relabel the blocks of ``cells`` (ids into ``content``), ``BATCH_CELLS`` blocks per labelling call."""
+        for a in range(0, len(cells), BATCH_CELLS):
+            batch = cells[a:a + BATCH_CELLS]
+            labels, count = block_labels(fine, content.cells[batch], self.empty)
+            first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int32)  # the batch numbers on
+            for d in range(6):
+                face = labels[_FACE_INDEX[d]]
+                self.faces[batch, d] = face - first[:, None, None] * (face > 0)
+            self.count[batch] = count
+            sizes = np.bincount(labels.reshape(-1), minlength=int(count.sum()) + 1)[1:]
+            for q, part in zip(batch, np.split(sizes, np.cumsum(count)[:-1])):
+                self.sizes[q] = part
+
+
+def fine_components(fine: np.ndarray, content: Cells, empty: bool = False, parts: BlockParts | None = None):
     """(node offsets per cell, node sizes, node → component id, n components) of the binarised output.
 
     Node ``offsets[q] + l - 1`` is local component l of cell q's block (6-connected, ``block_labels``). With
     ``empty`` the components are those of the empty voxels inside occupied cells, and one more node (the
     last, id ``offsets[-1]``) stands for the outside: every local component that touches a face whose coarse
-    neighbour is empty or beyond the grid is joined to it. Blocks are labelled ``BATCH_CELLS`` at a time;
-    only their six face layers are kept (as node ids + 1).
+    neighbour is empty or beyond the grid is joined to it. ``parts``: the blocks' components when already
+    labelled (``BlockParts``, up to date with ``fine``); else they are labelled here.
     """
+    parts = parts if parts is not None else BlockParts.of(fine, content, empty)
     n = len(content)
-    faces = np.zeros((n, 6, CELL, CELL), dtype=np.int32)
     offsets = np.zeros(n + 1, dtype=np.int64)
-    sizes = []
-    for a in range(0, n, BATCH_CELLS):
-        labels, count = block_labels(fine, content.cells[a:a + BATCH_CELLS], empty)
-        offsets[a + 1:a + 1 + len(count)] = offsets[a] + np.cumsum(count)
-        base = np.int32(offsets[a])  # the batch's labels are numbered from 1: shift them to node ids + 1
-        for d in range(6):
-            face = labels[_FACE_INDEX[d]]
-            faces[a:a + BATCH_CELLS, d] = np.where(face > 0, face + base, 0)
-        sizes.append(np.bincount(labels.reshape(-1), minlength=int(count.sum()) + 1)[1:])
+    np.cumsum(parts.count, out=offsets[1:])
+    # node ids + 1 on the faces
+    faces = np.where(parts.faces > 0, parts.faces + offsets[:-1, None, None, None].astype(np.int32), 0)
     total = int(offsets[-1])
     rows, cols = [], []
     for d in range(6):
@@ -157,7 +188,7 @@ def fine_components(fine: np.ndarray, content: Cells, empty: bool = False):
     c_ = np.concatenate(cols).astype(np.int64) if cols else np.zeros(0, dtype=np.int64)
     graph = coo_matrix((np.ones(len(r_)), (r_, c_)), shape=(size_n, size_n))
     n_comp, comp = connected_components(graph, directed=False) if size_n else (0, np.zeros(0, dtype=np.int64))
-    size = np.concatenate(sizes) if total else np.zeros(0, dtype=np.int64)
+    size = np.concatenate(parts.sizes).astype(np.int64) if total else np.zeros(0, dtype=np.int64)
     return offsets, size, comp, n_comp
 
 
@@ -182,10 +213,12 @@ def fill_cavities(fine: np.ndarray, content: Cells) -> int:
     return len(np.unique(comp[:total][enclosed]))
 
 
-def _tube(fine: np.ndarray, content: Cells, points: list[np.ndarray], radius: float = TUBE_RADIUS) -> None:
+def _tube(fine: np.ndarray, content: Cells, points: list[np.ndarray], radius: float = TUBE_RADIUS) -> set[int]:
     """Raise ``fine`` to a smooth tube profile along the polyline ``points`` (fine voxel coordinates),
-    only inside occupied coarse cells (a tube that ends at a cell face must not bulge into an empty one)."""
+    only inside occupied coarse cells (a tube that ends at a cell face must not bulge into an empty one).
+    Returns the ids of the cells whose blocks it may have changed."""
     occ = content.occ
+    touched: set[int] = set()
     for a, b in zip(points[:-1], points[1:]):
         a, b = a.astype(np.float64), b.astype(np.float64)
         lo = np.maximum(np.floor(np.minimum(a, b) - radius - 1).astype(int), 0)
@@ -199,6 +232,9 @@ def _tube(fine: np.ndarray, content: Cells, points: list[np.ndarray], radius: fl
         value *= occ[np.ix_(*cell)]
         region = fine[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
         np.maximum(region, value, out=region)
+        ids = content.ids[tuple(slice(l // CELL, (h - 1) // CELL + 1) for l, h in zip(lo, hi))]
+        touched.update(int(i) for i in ids[ids >= 0])
+    return touched
 
 
 def _nearest_voxel(mask: np.ndarray, cell: np.ndarray) -> np.ndarray:
@@ -220,20 +256,23 @@ def repair(fine: np.ndarray, occ: np.ndarray) -> dict:
     coarse_lab, n_coarse = ndimage.label(occ, structure=_SIX)
     cell_comp = coarse_lab[tuple(content.cells.T)]
     removed = tubes = 0
-    for _ in range(ROUNDS):
-        offsets, size, comp, n_comp = fine_components(fine, content)
+    parts = BlockParts.of(fine, content)
+    for round_ in range(ROUNDS):
+        offsets, size, comp, n_comp = fine_components(fine, content, parts=parts)
         if n_comp <= n_coarse:
             break
-        r, t = _repair_round(fine, content, cell_comp, offsets, size, comp)
+        r, t, changed = _repair_round(fine, content, cell_comp, offsets, size, comp)
         removed, tubes = removed + r, tubes + t
         if t == 0:
             break  # removing whole fragments cannot split what is left: one body per coarse component
+        if round_ < ROUNDS - 1:
+            parts.refresh(fine, content, np.array(sorted(changed), dtype=np.int64))
     return {"fragments_removed": removed, "bridges": tubes, "cavities_filled": fill_cavities(fine, content)}
 
 
-def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, int]:
+def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, int, set[int]]:
     """One round: remove fragments whose cells all hold main material, bridge cells that hold none.
-    Returns (fragments removed, tubes)."""
+    Returns (fragments removed, tubes, ids of the cells whose blocks changed)."""
     node_cell = np.repeat(np.arange(len(content)), np.diff(offsets))
     # main fine component per coarse component: the largest by voxels
     main_of = {}
@@ -254,15 +293,19 @@ def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, i
     for i in np.flatnonzero(~node_main):
         frag_cells.setdefault(int(comp[i]), set()).add(int(node_cell[i]))
     removable = {c for c, cells in frag_cells.items() if all(has_main[q] for q in cells)}
-    removed = 0
-    for q in sorted({q for c in removable for q in frag_cells[c]}):
-        block = _block(fine, content.cells[q])
-        lab, _ = ndimage.label(block >= ISO_LEVEL, structure=_SIX)
-        nodes = offsets[q] + np.arange(offsets[q + 1] - offsets[q])
-        drop = [l + 1 for l, node in enumerate(nodes) if int(comp[node]) in removable]
-        if drop:
-            block[np.isin(lab, drop)] = 0.0
-            removed += len(drop)
+    removed, changed = 0, set()
+    touched = np.array(sorted({q for c in removable for q in frag_cells[c]}), dtype=np.int64)
+    for a in range(0, len(touched), BATCH_CELLS):  # their blocks labelled in batches (each block on its own)
+        batch = touched[a:a + BATCH_CELLS]
+        labels, counts = block_labels(fine, content.cells[batch])
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])  # block i's local label l is first[i] + l
+        for i, q in enumerate(batch):
+            nodes = offsets[q] + np.arange(offsets[q + 1] - offsets[q])
+            drop = [first[i] + l + 1 for l, node in enumerate(nodes) if int(comp[node]) in removable]
+            if drop:
+                _block(fine, content.cells[q])[np.isin(labels[i], drop)] = 0.0
+                removed += len(drop)
+                changed.add(int(q))
     # bridges for cells without main material
     tubes = 0
     for q in np.flatnonzero(~has_main):
@@ -278,10 +321,10 @@ def _repair_round(fine, content, cell_comp, offsets, size, comp) -> tuple[int, i
         last = content.cells[path[-1]]
         main_mask = _main_mask(fine, content, offsets, node_main, path[-1])
         end = [_nearest_voxel(main_mask, last)] if main_mask.any() else []  # else a tube's cell: its centre
-        _tube(fine, content, start + centres + end)
+        changed |= _tube(fine, content, start + centres + end)
         has_main[path[:-1]] = True
         tubes += 1
-    return removed, tubes
+    return removed, tubes, changed
 
 
 def _main_mask(fine, content, offsets, node_main, q) -> np.ndarray:

@@ -403,6 +403,27 @@ def test_block_labels_number_each_block_as_labelling_it_alone(empty):
     assert list(n_full) == [1, 1] and (only_full[0] == 1).all() and (only_full[1] == 2).all()
 
 
+def test_block_parts_refreshed_in_the_changed_cells_equal_a_fresh_labelling():
+    from model.quilt import repair
+
+    rng = np.random.default_rng(5)
+    occ = np.ones((3, 2, 2), bool)
+    occ[2, 1, 1] = False
+    fine = (rng.random((48, 32, 32)) < 0.5).astype(np.float32) * occ.repeat(16, 0).repeat(16, 1).repeat(16, 2)
+    content = repair.cell_graph(occ)
+    parts = repair.BlockParts.of(fine, content)
+    fine[16:32, 0:16, 16:32] = 1.0  # cell (1, 0, 1): one component now
+    fine[0:16, 16:32, 0:16] = (rng.random((16, 16, 16)) < 0.3)  # cell (0, 1, 0): new components
+    parts.refresh(fine, content, np.array([content.ids[1, 0, 1], content.ids[0, 1, 0]]))
+    fresh = repair.BlockParts.of(fine, content)
+    np.testing.assert_array_equal(parts.count, fresh.count)
+    np.testing.assert_array_equal(parts.faces, fresh.faces)
+    assert all(np.array_equal(a, b) for a, b in zip(parts.sizes, fresh.sizes))
+    assert parts.count[content.ids[1, 0, 1]] == 1
+    for got, want in zip(repair.fine_components(fine, content, parts=parts), repair.fine_components(fine, content)):
+        np.testing.assert_array_equal(got, want)
+
+
 def test_enclosed_cavities_are_filled_and_open_pockets_kept():
     from model.quilt import repair
 

@@ -60,8 +60,12 @@ def test_blocks_join_into_the_same_closed_mesh_as_the_whole_grid(small_blocks, m
     settings = MeshSettings(max_triangles=None, sample_step=step)
     parts = detailize_and_mesh(grid, local_detailizer, settings)
     monkeypatch.setattr(chunks, "WHOLE_MAX_CELLS", 1000)
+    halves = detailize_and_mesh(grid, local_detailizer, settings)  # detailized whole, meshed as two pieces
+    monkeypatch.setattr(chunks, "MESH_SPLIT_MIN_CELLS", 1000)
     whole = detailize_and_mesh(grid, local_detailizer, settings)
-    assert parts.chunks == 4 and whole.chunks == 1
+    assert parts.chunks == 4 and whole.chunks == 1 and halves.chunks == 1
+    assert halves.mesh.is_watertight and len(halves.mesh.faces) == len(whole.mesh.faces)
+    assert cKDTree(whole.mesh.vertices).query(halves.mesh.vertices)[0].max() < 1e-6
     assert parts.mesh.is_watertight and whole.mesh.is_watertight
     # the same surface: the same vertices (welded on the seams; float32 rounding apart) and as many faces
     assert len(parts.mesh.vertices) == len(whole.mesh.vertices) and len(parts.mesh.faces) == len(whole.mesh.faces)
@@ -107,6 +111,33 @@ def test_two_processes_give_the_same_mesh_bit_for_bit(small_blocks):
     assert np.array_equal(one.mesh.visual.vertex_colors, two.mesh.visual.vertex_colors)
     assert one.structure == two.structure and one.extras == two.extras
     assert set(two_t) == {"detailize", "mesh"} and all(t > 0 for t in two_t.values())
+
+
+def test_one_block_meshed_in_two_processes_equals_one_process_bit_for_bit(small_blocks, monkeypatch):
+    monkeypatch.setattr(chunks, "WHOLE_MAX_CELLS", 1000)  # one block, detailized whole, meshed as two pieces
+    calls = []
+
+    def counted(grid: LabeledGrid) -> FineGrid:
+        calls.append(grid.shape)
+        return local_detailizer(grid)
+
+    grid = bar_grid(45)
+    settings = MeshSettings(max_triangles=5000, taubin_iterations=3)
+    one = detailize_and_mesh(grid, counted, settings, processes=1)
+    two = detailize_and_mesh(grid, counted, settings, processes=2)
+    assert calls == [grid.shape, grid.shape]  # once per build: the pieces are columns of the one field
+    assert one.chunks == two.chunks == 1 and one.mesh.is_watertight and len(one.mesh.faces) <= 5000
+    assert np.array_equal(one.mesh.vertices, two.mesh.vertices) and np.array_equal(one.mesh.faces, two.mesh.faces)
+    assert one.structure == two.structure
+
+
+def test_mesh_halves_balance_the_coarse_surface():
+    occ = np.zeros((20, 4, 4), bool)
+    occ[:, 1:3, 1:3] = True
+    assert chunks.mesh_halves(occ) == [Chunk(0, 10, 0, 20), Chunk(10, 20, 0, 20)]
+    occ[:5] = True  # a wide first quarter: more surface there
+    (first, second) = chunks.mesh_halves(occ)
+    assert first.stop < 10 and second.start == first.stop and second.stop == 20
 
 
 def test_the_split_balances_the_blocks_work():
