@@ -229,9 +229,7 @@ def mesh_halves(occupancy: np.ndarray) -> list[Chunk]:
     """Two pieces of one detailized block (both detailized on all columns): the split column balances the
     coarse surface (the meshing work) on its two sides."""
     n_x = occupancy.shape[0]
-    per_column = coarse_surface_faces(occupancy).sum(axis=(1, 2)).astype(np.float64)
-    before = np.cumsum(per_column)[:-1]  # surface left of split 1 … n_x − 1
-    split = int(np.argmin(np.maximum(before, per_column.sum() - before))) + 1
+    split = split_blocks(occupancy, [Chunk(i, i + 1, i, i + 1) for i in range(n_x)])  # columns as blocks
     return [Chunk(0, split, 0, n_x), Chunk(split, n_x, 0, n_x)]
 
 
