@@ -19,14 +19,19 @@ from core.grid import FineGrid, LabeledGrid
 
 
 class Detailizer(Protocol):
-    """What the pipeline calls; two optional parts serve the build's cache and its determinism:
+    """What the pipeline calls; three optional parts serve the build's cache, its determinism and its speed:
 
     - ``input_files``: every file the detailizer loaded (its checkpoint, a style set...), when it
       defines it; a build records them with their sha256 in each asset's input closure
       (``pipeline/cache.py``), so an edit to any of them makes the asset stale;
     - ``requested_threads()``: the CPU thread count the caller asks its kernels to use (the build
       asks for the same count wherever an asset runs: ``pipeline/executors.py``); a detailizer whose
-      output depends on it (a learned model's convolutions round differently) should honour it.
+      output depends on it (a learned model's convolutions round differently) should honour it;
+    - ``column_detailizer(grid, seed)``, when it defines it: does the work every part of the grid shares
+      now and returns ``columns(start, stop)``, the ``FineGrid`` of coarse columns ``[start, stop)`` (origin
+      at column ``start``) as ``detailize`` would give them; a part's bytes may depend only on the grid and
+      its columns. The build then detailizes an asset's two halves in two processes (``pipeline/chunks.py``).
+      A detailizer whose output depends on the whole shape at once (the quilt's search) does not define it.
     """
 
     name: str

@@ -23,12 +23,19 @@ Crops of up to ``DENSE_MAX_CELLS`` coarse cells (a 16³ shape's crop is 18³) ru
 one dense pass; larger ones (long words) run their fine levels block by block
 (``model.windows.blockwise_forward``: exact halos, empty blocks skipped), which
 bounds memory by one block and skips the empty space between letters.
+
+``column_detailizer`` gives the field in column ranges: the coarse levels run once on the whole crop,
+the fine levels (most of the work) on each range asked for, with exact halos. The pipeline detailizes the
+two halves of an asset that way in two processes (``pipeline/chunks.py``); the joined halves equal
+``detailize`` up to float rounding (on the showcase, bit for bit).
 """
 
 from __future__ import annotations
 
 import functools
 import os
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +44,7 @@ from model.checkpoint import FORMAT_VERSION, Checkpoint, load_checkpoint
 from model.masks import fill_nearest
 from model.provenance import checkpoint_style_set, exemplar_extras
 from model.upsample import fill_styles_everywhere, nearest_upsample
-from model.windows import blockwise_forward
+from model.windows import TrunkFeatures, blockwise_forward
 from core.detailizer import requested_threads
 from core.errors import DetailizeError
 from core.grid import ISO_LEVEL, FineGrid, LabeledGrid
@@ -54,6 +61,9 @@ MARGIN = 1
 DENSE_MAX_CELLS = 24**3
 #: Block edge in coarse cells for large crops (256³ fine voxels a block).
 BLOCK_CELLS = 16
+#: Levels a column-wise run (``column_detailizer``) computes on the whole crop before the columns (2: the 32³
+#: and 64³ levels, a one-cell halo): the fine levels, most of the work, run on the columns asked for alone.
+COLUMN_WHOLE_LEVELS = 2
 
 
 def resolve_device(device: Device | str) -> "torch.device":  # noqa: F821 - torch is imported lazily
@@ -102,7 +112,7 @@ def thin_cells(occupancy: np.ndarray) -> np.ndarray:
 
 
 def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, min_fill: float,
-                        iso: float = ISO_LEVEL, thin_only: bool = False) -> np.ndarray:
+                        iso: float = ISO_LEVEL, thin_only: bool = False, thin: np.ndarray | None = None) -> np.ndarray:
     """Raise the field of every occupied coarse cell whose block is less than ``min_fill`` occupied.
 
     For such a cell, the field of its ``factor``³ block is raised uniformly by the
@@ -119,6 +129,8 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
             axis) to ``min_fill``; every other occupied cell only to one voxel above ``iso``
             (its highest; so Strict-IOU stays 1), leaving the boundary cells of thicker parts as the
             generator made them.
+        thin: (X, Y, Z) bool, the ``thin_cells`` to use instead of those of ``occupancy`` (columns cut from a
+            larger grid: a cell on the cut is thin or not by its neighbours in the whole grid).
     """
     if min_fill <= 0 or not occupancy.any():
         return fine
@@ -126,7 +138,7 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
     f, n = factor, factor**3
     k = int(np.ceil(min_fill * n))
     above = (fine > iso).reshape(x, f, y, f, z, f).sum(axis=(1, 3, 5), dtype=np.int32)
-    need = np.where(thin_cells(occupancy), k, 1) if thin_only else np.full(occupancy.shape, k)
+    need = np.where(thin_cells(occupancy) if thin is None else thin, k, 1) if thin_only else np.full(occupancy.shape, k)
     for cx, cy, cz in np.argwhere(occupancy & (above < need)):
         kc = int(need[cx, cy, cz])
         block = (slice(cx * f, cx * f + f), slice(cy * f, cy * f + f), slice(cz * f, cz * f + f))
@@ -230,8 +242,6 @@ class DecollageDetailizer:
         Raises:
             DetailizeError: the grid uses a style or part name unknown to the checkpoint.
         """
-        import torch
-
         f = self.ckpt.config.factor
         occ = grid.occupancy
         styles_fine = nearest_upsample(fill_styles_everywhere(grid), f)
@@ -248,12 +258,77 @@ class DecollageDetailizer:
             voxel_size_m=grid.voxel_size_m / f,
             origin_m=grid.origin_m,
             detailizer=self.name,
-            extras={"checkpoint": str(self.checkpoint_path), "seed": int(seed),
-                    # the styles assigned are the exemplars whose learned geometry shapes the output
-                    **exemplar_extras(self.style_set[0], [grid.style_names[i] for i in np.unique(grid.style[occ])])},
+            extras=self._extras(grid, seed),
         )
 
+    def column_detailizer(self, grid: LabeledGrid, seed: int = 0) -> Callable[[int, int], FineGrid]:
+        """Detailize ``grid`` in parts: the generator's coarse levels run now, on the whole crop; the returned
+        ``columns(start, stop)`` gives the ``FineGrid`` of coarse columns ``[start, stop)`` (f·(stop − start),
+        f·Y, f·Z), its origin at column ``start``, running the fine levels (``COLUMN_WHOLE_LEVELS`` on) on those
+        columns alone.
+
+        The columns equal ``detailize``'s there up to float rounding (exact halos, ``model/windows.py``), and a
+        part's bytes depend only on the grid and its columns: parts may be computed in any order, in forked
+        processes that share this call's work (``pipeline/chunks.py``). CPU threads: as ``detailize``, read
+        at this call.
+
+        Raises:
+            DetailizeError: the grid uses a style or part name unknown to the checkpoint.
+        """
+        import torch
+
+        f, cfg = self.ckpt.config.factor, self.ckpt.config
+        occ = grid.occupancy
+        styles_coarse = fill_styles_everywhere(grid)
+        thin = thin_cells(occ)
+        extras = self._extras(grid, seed)
+        threads = requested_threads() or cpu_threads()
+        trunk, crop = None, None
+        if occ.any():
+            parts = self._map(grid.part, occ, grid.part_names, self._part_index, "part")
+            styles = self._map(grid.style, occ, grid.style_names, self._style_index, "style")
+            crop = _Crop.around(occ, parts, styles)
+            self._set_threads(threads)
+            with torch.random.fork_rng(devices=[]), torch.inference_mode():
+                torch.manual_seed(int(seed))
+                trunk = TrunkFeatures.run(self.generator, *crop.inputs(self.generator), COLUMN_WHOLE_LEVELS)
+
+        def columns(start: int, stop: int) -> FineGrid:
+            fine = np.zeros(((stop - start) * f, occ.shape[1] * f, occ.shape[2] * f), dtype=np.float32)
+            first, last = (max(start, crop.src[0].start), min(stop, crop.src[0].stop)) if crop else (0, 0)
+            if first < last:
+                offset = crop.src[0].start - crop.pad[0][0]  # the grid column of the crop's first column
+                cells = (last - first) * crop.occ.shape[1] * crop.occ.shape[2]
+                block = max(last - first, *crop.occ.shape[1:]) if cells <= DENSE_MAX_CELLS else BLOCK_CELLS
+                self._set_threads(threads)
+                with torch.inference_mode():
+                    out = trunk.columns(first - offset, last - offset, block_cells=block)[0, 0]
+                    out = out[:, crop.inside(1, f), crop.inside(2, f)].float().clamp_(0.0, 1.0).cpu().numpy()
+                fine[(first - start) * f:(last - start) * f, crop.src[1].start * f:crop.src[1].stop * f,
+                     crop.src[2].start * f:crop.src[2].stop * f] = out
+            min_fill_projection(fine, occ[start:stop], f, cfg.min_cell_fill, thin_only=cfg.min_fill_thin_only,
+                                thin=thin[start:stop])
+            origin = (grid.origin_m[0] + start * grid.voxel_size_m, *grid.origin_m[1:])
+            return FineGrid(occupancy=fine, style=nearest_upsample(styles_coarse[start:stop], f),
+                            style_names=grid.style_names, voxel_size_m=grid.voxel_size_m / f, origin_m=origin,
+                            detailizer=self.name, extras=extras)
+        return columns
+
     # ------------------------------------------------------------------ helpers
+
+    def _extras(self, grid: LabeledGrid, seed: int) -> dict:
+        occ = grid.occupancy
+        return {"checkpoint": str(self.checkpoint_path), "seed": int(seed),
+                # the styles assigned are the exemplars whose learned geometry shapes the output
+                **exemplar_extras(self.style_set[0], [grid.style_names[i] for i in np.unique(grid.style[occ])])}
+
+    def _set_threads(self, threads: int) -> None:
+        import torch
+
+        if self.device.type == "cpu":
+            torch.set_num_threads(threads)
+        else:  # the same bytes on every run: no autotuned or atomic-add (transposed-conv) kernels
+            torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark = True, False
 
     def _map(self, values: np.ndarray, occ: np.ndarray, names: tuple[str, ...], index: dict[str, int],
              what: str) -> np.ndarray:
@@ -270,39 +345,64 @@ class DecollageDetailizer:
         return np.where(occ, lut[np.clip(values, 0, None)], -1)
 
     def _run(self, occ: np.ndarray, parts: np.ndarray, styles: np.ndarray, seed: int) -> np.ndarray:
-        """Run the generator on the occupied bounding box + ``MARGIN`` cells; zero elsewhere.
-
-        The crop is what training saw (bbox + one empty coarse cell, padded with empty
-        cells where the bbox touches the grid border), and it skips work on empty space.
-        Empty cells take the part and style of their nearest occupied cell.
-        """
+        """Run the generator on the occupied bounding box + ``MARGIN`` cells (``_Crop``); zero elsewhere."""
         import torch
 
-        m, f = MARGIN, self.ckpt.config.factor
-        idx = np.argwhere(occ)
-        lo, hi = idx.min(axis=0) - m, idx.max(axis=0) + 1 + m  # coarse crop, may reach outside the grid
-        pad = [(max(0, -a), max(0, b - n)) for a, b, n in zip(lo, hi, occ.shape)]
-        src = tuple(slice(max(0, a), min(n, b)) for a, b, n in zip(lo, hi, occ.shape))
-        occ_c = np.pad(occ[src], pad)
-        parts_c = fill_nearest(np.pad(parts[src], pad, constant_values=-1), occ_c)
-        styles_c = fill_nearest(np.pad(styles[src], pad, constant_values=-1), occ_c)
+        f = self.ckpt.config.factor
+        crop = _Crop.around(occ, parts, styles)
         gen = self.generator
-        if self.device.type == "cpu":
-            torch.set_num_threads(requested_threads() or cpu_threads())
-        else:  # the same bytes on every run: no autotuned or atomic-add (transposed-conv) kernels
-            torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark = True, False
+        self._set_threads(requested_threads() or cpu_threads())
         with torch.random.fork_rng(devices=[]), torch.inference_mode():
             torch.manual_seed(int(seed))
-            inputs = gen.make_inputs(torch.from_numpy(occ_c)[None], torch.from_numpy(parts_c)[None],
-                                     torch.from_numpy(styles_c)[None])
-            if occ_c.size <= DENSE_MAX_CELLS:
+            inputs = crop.inputs(gen)
+            if crop.occ.size <= DENSE_MAX_CELLS:
                 out = gen(*inputs, final_only=True)[-1][0, 0]
             else:
                 out = blockwise_forward(gen, *inputs, block_cells=BLOCK_CELLS)[0, 0]
-            # drop the part of the crop that lies outside the grid
-            out = out[tuple(slice(b * f, out.shape[i] - a * f) for i, (b, a) in enumerate(pad))]
-            crop = out.float().clamp_(0.0, 1.0).cpu().numpy()
+            out = out[tuple(crop.inside(axis, f) for axis in range(3))]  # drop the crop outside the grid
+            cropped = out.float().clamp_(0.0, 1.0).cpu().numpy()
         fine = np.zeros(tuple(n * f for n in occ.shape), dtype=np.float32)
-        fine[tuple(slice(s.start * f, s.stop * f) for s in src)] = crop
+        fine[tuple(slice(s.start * f, s.stop * f) for s in crop.src)] = cropped
         cfg = self.ckpt.config
         return min_fill_projection(fine, occ, f, cfg.min_cell_fill, thin_only=cfg.min_fill_thin_only)
+
+
+@dataclass(frozen=True)
+class _Crop:
+    """The coarse box the generator runs on, as in training: the occupied bounding box plus ``MARGIN`` empty
+    cells on every side (padded with empty cells where it reaches outside the grid); empty cells take the part
+    and style of their nearest occupied cell, so the box skips work on empty space.
+
+    Attributes:
+        src: the box's cells that lie inside the grid (x, y, z slices of the grid).
+        pad: per axis, (cells before, cells after) of the box outside the grid.
+        occ, parts, styles: (cx, cy, cz) the box's occupancy (bool) and checkpoint part and style indices.
+    """
+
+    src: tuple[slice, slice, slice]
+    pad: tuple[tuple[int, int], ...]
+    occ: np.ndarray
+    parts: np.ndarray
+    styles: np.ndarray
+
+    @classmethod
+    def around(cls, occ: np.ndarray, parts: np.ndarray, styles: np.ndarray) -> "_Crop":
+        idx = np.argwhere(occ)
+        lo, hi = idx.min(axis=0) - MARGIN, idx.max(axis=0) + 1 + MARGIN  # may reach outside the grid
+        pad = tuple((max(0, -int(a)), max(0, int(b) - n)) for a, b, n in zip(lo, hi, occ.shape))
+        src = tuple(slice(max(0, int(a)), min(n, int(b))) for a, b, n in zip(lo, hi, occ.shape))
+        occ_c = np.pad(occ[src], pad)
+        return cls(src, pad, occ_c, fill_nearest(np.pad(parts[src], pad, constant_values=-1), occ_c),
+                   fill_nearest(np.pad(styles[src], pad, constant_values=-1), occ_c))
+
+    def inputs(self, gen) -> tuple:
+        """The generator's inputs for the box (``Generator.make_inputs``, batch 1)."""
+        import torch
+
+        return gen.make_inputs(torch.from_numpy(self.occ)[None], torch.from_numpy(self.parts)[None],
+                               torch.from_numpy(self.styles)[None])
+
+    def inside(self, axis: int, factor: int) -> slice:
+        """The fine voxels along ``axis`` of the box's output that lie inside the grid."""
+        before, after = self.pad[axis]
+        return slice(before * factor, (self.occ.shape[axis] - after) * factor)

@@ -12,6 +12,8 @@ the result on the window equals the whole-grid result (up to float rounding).
   (long text grids), and may skip blocks whose cells and halo are all empty: the
   generator's output there is whatever it makes of empty space, which the pipeline
   binarises at 0.4 to nothing, so skipped blocks are written as 0.
+- Column ranges (``TrunkFeatures``): the trunk once, then the fine levels block by block
+  on any x range of columns; ``blockwise_forward`` is the whole range.
 """
 
 from __future__ import annotations
@@ -131,25 +133,53 @@ def blockwise_forward(gen: "Generator", occupancy: "Tensor", part_onehot: "Tenso
         skip_empty: blocks whose cells and halo hold no occupied cell are not run (left 0).
     Equal to ``gen(..., final_only=True)[-1]`` up to float rounding when ``skip_empty`` is False.
     """
-    import torch
+    trunk = TrunkFeatures.run(gen, occupancy, part_onehot, z, whole_levels)
+    return trunk.columns(0, occupancy.shape[2], block_cells=block_cells, skip_empty=skip_empty)
 
-    cfg = gen.cfg
-    whole_levels = min(max(whole_levels, 0), cfg.n_levels - 1)
-    x, cond, _ = _trunk(gen, occupancy, part_onehot, z, whole_levels, keep=False)
-    halo = halo_cells(cfg, whole_levels)
-    shape = tuple(occupancy.shape[2:])
-    f = cfg.factor
-    out = torch.zeros((1, 1, *(n * f for n in shape)), dtype=x.dtype, device=x.device)
-    occ = occupancy[0, 0] > 0
-    for bx in range(0, shape[0], block_cells):
-        for by in range(0, shape[1], block_cells):
-            for bz in range(0, shape[2], block_cells):
-                window = (slice(bx, min(bx + block_cells, shape[0])), slice(by, min(by + block_cells, shape[1])),
-                          slice(bz, min(bz + block_cells, shape[2])))
-                if skip_empty:
-                    near = tuple(slice(max(0, w.start - halo), w.stop + halo) for w in window)
-                    if not bool(occ[near].any()):
-                        continue
-                block = fine_on_window(gen, x, cond, occupancy, whole_levels, window, halo, keep=False)[0]
-                out[:, :, *(slice(w.start * f, w.stop * f) for w in window)] = block
-    return out
+
+class TrunkFeatures:
+    """The coarse part of one forward (backbone and levels ``< whole_levels`` on the whole grid), from which
+    the fine levels are run on any range of x columns (``columns``), block by block.
+
+    Split this way, a shape's fine levels can be run in parts — in two processes, say — that share one trunk:
+    the columns of each part equal the whole forward's there (up to float rounding), and a part's bytes do not
+    depend on which other parts are run, or where.
+    """
+
+    def __init__(self, gen: "Generator", x: "Tensor", cond: "Tensor", occupancy: "Tensor", whole_levels: int) -> None:
+        self.gen, self.x, self.cond, self.occupancy, self.whole_levels = gen, x, cond, occupancy, whole_levels
+
+    @classmethod
+    def run(cls, gen: "Generator", occupancy: "Tensor", part_onehot: "Tensor | None", z: "Tensor",
+            whole_levels: int = 2) -> "TrunkFeatures":
+        """Run the trunk on one shape's inputs (batch 1); ``whole_levels`` is clamped to [0, levels − 1]."""
+        whole_levels = min(max(whole_levels, 0), gen.cfg.n_levels - 1)
+        x, cond, _ = _trunk(gen, occupancy, part_onehot, z, whole_levels, keep=False)
+        return cls(gen, x, cond, occupancy, whole_levels)
+
+    def columns(self, x0: int, x1: int, *, block_cells: int = 8, skip_empty: bool = True) -> "Tensor":
+        """The last level's output on coarse columns ``[x0, x1)``: (1, 1, f·(x1 − x0), f·Y, f·Z).
+
+        The columns are covered by blocks of ``block_cells``³ coarse cells (from ``x0``); with ``skip_empty``,
+        blocks whose cells and halo hold no occupied cell are not run (left 0).
+        """
+        import torch
+
+        gen, x, cond, occupancy, whole = self.gen, self.x, self.cond, self.occupancy, self.whole_levels
+        halo = halo_cells(gen.cfg, whole)
+        shape = tuple(occupancy.shape[2:])
+        f = gen.cfg.factor
+        out = torch.zeros((1, 1, (x1 - x0) * f, shape[1] * f, shape[2] * f), dtype=x.dtype, device=x.device)
+        occ = occupancy[0, 0] > 0
+        for bx in range(x0, x1, block_cells):
+            for by in range(0, shape[1], block_cells):
+                for bz in range(0, shape[2], block_cells):
+                    window = (slice(bx, min(bx + block_cells, x1)), slice(by, min(by + block_cells, shape[1])),
+                              slice(bz, min(bz + block_cells, shape[2])))
+                    if skip_empty:
+                        near = tuple(slice(max(0, w.start - halo), w.stop + halo) for w in window)
+                        if not bool(occ[near].any()):
+                            continue
+                    block = fine_on_window(gen, x, cond, occupancy, whole, window, halo, keep=False)[0]
+                    out[:, :, *(slice((w.start - o) * f, (w.stop - o) * f) for w, o in zip(window, (x0, 0, 0)))] = block
+        return out

@@ -246,10 +246,13 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
     fine_vox = (FineVox(tuple(n * UPSAMPLE_FACTOR for n in grid.shape), grid.style_names)
                 if VoxExport.FINE in export.vox else None)  # filled block by block, as the blocks are detailized
     with kernel_threads(ASSET_THREADS), blas_threads(ASSET_THREADS):  # block by block (pipeline/chunks.py)
-        detailed = detailize_and_mesh(grid, lambda g: detailizer.detailize(g, seed=asset.detailize.seed),
+        seed = asset.detailize.seed
+        by_columns = getattr(detailizer, "column_detailizer", None)  # optional (core/detailizer.py)
+        detailed = detailize_and_mesh(grid, lambda g: detailizer.detailize(g, seed=seed),
                                       MeshSettings.from_export(export, grid.occupancy), report.timings_s,
                                       on_block=fine_vox.add if fine_vox is not None else None,
-                                      processes=block_processes)
+                                      processes=block_processes,
+                                      columns=(lambda g: by_columns(g, seed=seed)) if by_columns else None)
     for stage in ("detailize", "mesh"):
         report.timings_s[stage] = round(report.timings_s.get(stage, 0.0), 3)
     mesh = detailed.mesh

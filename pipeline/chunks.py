@@ -3,8 +3,9 @@ bounded memory and take time in proportion to their length.
 
 A coarse grid at most ``WHOLE_MAX_CELLS`` columns long (every 16³ shape, a 3-letter word) is one
 block: the detailizer sees it whole (from ``MESH_SPLIT_MIN_CELLS`` columns on, that block is meshed as
-two pieces of its one field, which two processes can mesh at once). A longer one is cut into blocks of
-at most ``CHUNK_CELLS`` columns.
+two pieces of its one field, which two processes can mesh at once; a detailizer that can give its field
+column range by column range — ``column_detailizer``, the learned model — also detailizes the two pieces
+apart, after the work they share). A longer one is cut into blocks of at most ``CHUNK_CELLS`` columns.
 Each block is detailized on its columns plus ``HALO_CELLS`` columns of context on either side (the
 detailizer sees its neighbours' shapes there; only the block's own columns are kept), then meshed
 (``pipeline/mesh.py``'s ``mesh_piece``) from its own fine columns plus the first fine column of the
@@ -140,7 +141,7 @@ class BlockJob:
     """Everything a run over some of an asset's blocks needs (the same in both processes of a split run)."""
 
     grid: LabeledGrid
-    detailize: Callable[[LabeledGrid], FineGrid]
+    detailize: Callable[[Chunk], FineGrid]  # a block → the fine field of its columns [lo, hi)
     settings: MeshSettings
     chunks: list[Chunk]
     shares: list[int | None]
@@ -202,7 +203,7 @@ def run_blocks(job: BlockJob, blocks: range,
     for k in blocks:
         chunk = chunks[k]
         start = time.perf_counter()
-        fine = job.detailize(chunk_grid(grid, chunk.lo, chunk.hi) if len(chunks) > 1 else grid)
+        fine = job.detailize(chunk)
         own = slice((chunk.start - chunk.lo) * f, (chunk.stop - chunk.lo) * f)
         field, style = fine.occupancy[own], fine.style[own]
         out.extras.append(fine.extras)
@@ -244,7 +245,8 @@ def split_blocks(occupancy: np.ndarray, chunks: list[Chunk]) -> int:
 def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], FineGrid], settings: MeshSettings,
                        timings: dict[str, float] | None = None, iso: float = ISO_LEVEL,
                        on_block: Callable[[int, np.ndarray, np.ndarray], None] | None = None,
-                       processes: int = 1) -> DetailedMesh:
+                       processes: int = 1,
+                       columns: Callable[[LabeledGrid], Callable[[int, int], FineGrid]] | None = None) -> DetailedMesh:
     """Detailize ``grid`` and mesh the result, block by block along x (see the module docstring).
 
     Args:
@@ -257,22 +259,35 @@ def detailize_and_mesh(grid: LabeledGrid, detailize: Callable[[LabeledGrid], Fin
         processes: 2 lets a grid of several blocks (or pieces) detailize and mesh its second half in a forked
             child (``pipeline/forked.py``) while this process does the first. The output is the same bit for bit
             (every block is computed alike; only the first columns of the child's first block cross over).
+        columns: the detailizer's ``column_detailizer`` (seed bound), or None: a grid of one block meshed as two
+            pieces is then detailized piece by piece, after the work the pieces share (done before any fork).
     Raises:
         MeshingError: nothing to mesh, a meshing step failed, the block process died; a detailizer's own errors.
     """
     timings = timings if timings is not None else {}
     chunks = plan_chunks(grid.shape[0])
     blocks = len(chunks)  # detailized apart
+
+    def block_field(chunk: Chunk) -> FineGrid:
+        return detailize(chunk_grid(grid, chunk.lo, chunk.hi) if len(chunks) > 1 else grid)
     if len(chunks) == 1 and grid.shape[0] >= MESH_SPLIT_MIN_CELLS:
         start = time.perf_counter()
-        whole = detailize(grid)
-        timings["detailize"] = timings.get("detailize", 0.0) + time.perf_counter() - start
-        chunks = mesh_halves(grid.occupancy)
+        if columns is not None:  # each piece detailized on its own columns
+            part = columns(grid)
+            chunks = [Chunk(c.start, c.stop, c.start, c.stop) for c in mesh_halves(grid.occupancy)]
+            blocks = 2
 
-        def detailize(_columns: LabeledGrid) -> FineGrid:  # both pieces are columns of the one field
-            return whole
-    job = BlockJob(grid, detailize, settings, chunks, budget_shares(grid.occupancy, chunks, settings.max_triangles),
-                   iso, on_block)
+            def block_field(chunk: Chunk) -> FineGrid:
+                return part(chunk.lo, chunk.hi)
+        else:  # both pieces are columns of the one field
+            whole = detailize(grid)
+            chunks = mesh_halves(grid.occupancy)
+
+            def block_field(chunk: Chunk) -> FineGrid:
+                return whole
+        timings["detailize"] = timings.get("detailize", 0.0) + time.perf_counter() - start
+    job = BlockJob(grid, block_field, settings, chunks,
+                   budget_shares(grid.occupancy, chunks, settings.max_triangles), iso, on_block)
     if processes >= 2 and len(chunks) >= 2 and on_block is None and CAN_FORK:
         split = split_blocks(grid.occupancy, chunks)
         start = time.perf_counter()

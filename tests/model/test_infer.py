@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -13,7 +15,7 @@ from model.infer import DEFAULT_CHECKPOINT, DecollageDetailizer, resolve_device
 from model.networks import Generator
 from core import detailizer as pipeline_detailize
 from core.errors import DetailizeError
-from core.grid import EMPTY, LabeledGrid
+from core.grid import EMPTY, ISO_LEVEL, LabeledGrid
 
 STYLES = ("tower", "tree", "cake")
 PARTS = ("body", "roof")
@@ -197,6 +199,64 @@ def test_large_crops_run_blockwise_with_the_dense_result(ckpt_path, monkeypatch)
     blocks = det.detailize(g).occupancy
     assert calls == [{"block_cells": 2}]
     np.testing.assert_allclose(blocks, dense, atol=1e-5)
+
+
+def _long_grid() -> LabeledGrid:
+    """(9, 4, 3): a slab along x with a post two cells square on it (columns 3–4): cut at column 4, the post's
+    cells there look one cell thin along x to the part alone."""
+    g = _grid((9, 4, 3))
+    occ, part, style = g.occupancy.copy(), g.part.copy(), g.style.copy()
+    occ[:, 2:, :] = False
+    occ[3:5, 2:, 0:2] = True
+    part[~occ], style[~occ] = EMPTY, EMPTY
+    part[occ & (part == EMPTY)], style[occ & (style == EMPTY)] = 0, 0
+    return LabeledGrid(occ, part, style, g.part_names, g.style_names, g.voxel_size_m, g.origin_m)
+
+
+@pytest.mark.parametrize("blockwise", [False, True])
+def test_column_parts_join_into_the_whole_field(ckpt_path, monkeypatch, blockwise):
+    import model.infer as infer
+
+    if blockwise:  # the columns' fine levels run in 2-cell blocks
+        monkeypatch.setattr(infer, "DENSE_MAX_CELLS", 0)
+        monkeypatch.setattr(infer, "BLOCK_CELLS", 2)
+    det = DecollageDetailizer(ckpt_path, device="cpu")
+    g = _long_grid()
+    whole = det.detailize(g, seed=3)
+    columns = det.column_detailizer(g, seed=3)
+    second, first = columns(4, 9), columns(0, 4)  # any order
+    joined = np.concatenate([first.occupancy, second.occupancy])
+    if blockwise:  # blocks far from the shape are skipped (left 0), and the parts' blocks start at their cut
+        both = (joined > 0) & (whole.occupancy > 0)
+        assert np.array_equal(joined > ISO_LEVEL, whole.occupancy > ISO_LEVEL) and both.mean() > 0.1
+        np.testing.assert_allclose(joined[both], whole.occupancy[both], atol=1e-5)
+    else:
+        np.testing.assert_allclose(joined, whole.occupancy, atol=1e-5)
+    assert np.array_equal(np.concatenate([first.style, second.style]), whole.style)
+    assert first.origin_m == whole.origin_m and second.origin_m == (1.0 + 4 * 0.5, 2.0, 3.0)
+    assert second.shape == (5 * 16, 4 * 16, 3 * 16) and second.extras == whole.extras
+    # a part's bytes depend on the grid and its columns only, not on what ran before it (a forked process)
+    again = det.column_detailizer(g, seed=3)(4, 9)
+    assert np.array_equal(again.occupancy, second.occupancy)
+
+
+def test_column_parts_keep_the_thin_projection_of_the_whole_grid(tmp_path):
+    """The minimum-fill projection judges a cell thin by its neighbours in the whole grid, also on the cut."""
+    cfg = dataclasses.replace(ModelConfig.lean(len(PARTS), len(STYLES)).scaled(0.125), min_cell_fill=0.3,
+                              min_fill_thin_only=True)
+    torch.manual_seed(1)
+    gen = Generator(cfg)
+    path = save_checkpoint(tmp_path / "fill.pt", Checkpoint(cfg, STYLES, PARTS, (PARTS, ("body",), PARTS),
+                                                            gen.state_dict(), {"step": 0}))
+    det = DecollageDetailizer(path, device="cpu")
+    g = _long_grid()
+    whole = det.detailize(g).occupancy
+    columns = det.column_detailizer(g)
+    joined = np.concatenate([columns(0, 4).occupancy, columns(4, 9).occupancy])
+    np.testing.assert_allclose(joined, whole, atol=1e-5)
+    above = joined.reshape(9, 16, 4, 16, 3, 16) > ISO_LEVEL
+    fill = above.mean(axis=(1, 3, 5))
+    assert fill[4, 2:, 0:2].min() < 0.3  # the post's cells were not raised as thin ones (they are not)
 
 
 @pytest.mark.e2e  # the shipped model at 256³

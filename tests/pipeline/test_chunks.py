@@ -131,6 +131,39 @@ def test_one_block_meshed_in_two_processes_equals_one_process_bit_for_bit(small_
     assert one.structure == two.structure
 
 
+def test_a_column_detailizer_gives_each_piece_its_own_columns_bit_for_bit_in_two_processes(monkeypatch):
+    """With ``columns`` (the learned model's ``column_detailizer``) the two pieces of one block are detailized
+    apart after one shared step; one or two processes give the same bytes, and the whole field is never made."""
+    shared, parts = [], []
+
+    def columns(grid: LabeledGrid):
+        shared.append(grid.shape)
+        whole = local_detailizer(grid)  # the shared work: each part below is cut from it, as a real model's is
+
+        def part(start: int, stop: int) -> FineGrid:
+            parts.append((start, stop))
+            origin = (grid.origin_m[0] + start * grid.voxel_size_m, *grid.origin_m[1:])
+            return FineGrid(whole.occupancy[start * F:stop * F].copy(), whole.style[start * F:stop * F].copy(),
+                            grid.style_names, whole.voxel_size_m, origin, extras=whole.extras)
+        return part
+
+    def never(grid: LabeledGrid) -> FineGrid:
+        raise AssertionError("the whole grid was detailized")
+
+    grid = bar_grid(30)
+    settings = MeshSettings(max_triangles=5000, taubin_iterations=3)
+    one = detailize_and_mesh(grid, never, settings, processes=1, columns=columns)
+    two = detailize_and_mesh(grid, never, settings, processes=2, columns=columns)
+    split = chunks.mesh_halves(grid.occupancy)[1].start
+    # one process: both parts; two: this one's (the child's part is computed in the child, unseen here)
+    assert shared == [grid.shape] * 2 and parts == [(0, split), (split, 30), (0, split)]
+    assert one.chunks == two.chunks == 2 and one.mesh.is_watertight
+    assert np.array_equal(one.mesh.vertices, two.mesh.vertices) and np.array_equal(one.mesh.faces, two.mesh.faces)
+    assert one.structure == two.structure
+    reference = detailize_and_mesh(grid, local_detailizer, settings)  # the same field, detailized whole
+    assert len(reference.mesh.faces) == len(one.mesh.faces) and one.structure == reference.structure
+
+
 def test_mesh_halves_balance_the_coarse_surface():
     occ = np.zeros((20, 4, 4), bool)
     occ[:, 1:3, 1:3] = True
