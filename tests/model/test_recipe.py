@@ -238,6 +238,22 @@ def test_a_warmup_state_moves_to_warmup_thin_and_resumes(tmp_path):
     trainer.restore(tmp_path / "run" / "last.pt")  # accepted as a warmup_thin state
     assert trainer.step == 1
     # recipes that train differently are refused
-    for other in ("reference", "distill"):
+    for other in ("reference", "distill", "warmup_low"):
         with pytest.raises(ValueError, match="train differently"):
             move_state_recipe(ck, other)
+
+
+def test_warmup_low_is_warmup_thin_at_a_lower_warmup_peak(tmp_path):
+    from model.recipes import WARMUP_ITERS, recipe_configs
+
+    cfg_t, t_t = recipe_configs("warmup_thin", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_thin"))
+    cfg_l, t_l = recipe_configs("warmup_low", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_low"))
+    assert cfg_l == cfg_t  # the same model, output mask and inference projection (thin cells only)
+    assert cfg_l.min_fill_thin_only and cfg_l.output_mask and cfg_l.style_init_std == 1.0
+    assert t_l.warmup_lr == pytest.approx(3e-4) and t_t.warmup_lr == pytest.approx(1e-3)
+    assert t_l.warmup_iters == WARMUP_ITERS and t_l.windows_per_step == 4 and t_l.style_lr_mult == 10.0
+    # nothing else of the training differs (the recipe name is the caller's, equal here)
+    assert dataclasses.replace(t_l, warmup_lr=t_t.warmup_lr, recipe=t_t.recipe) == t_t
+    trainer = Trainer(EXS, cfg_l, t_l)
+    assert trainer.learning_rate(0) == pytest.approx(3e-4)
+    assert trainer.learning_rate(WARMUP_ITERS) == pytest.approx(t_l.lr)  # the half cosine ends at the base rate
