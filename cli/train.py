@@ -53,9 +53,10 @@ def train_command(
                                            "the checkpoint."),
     recipe: Recipe = typer.Option("reference", "--recipe",
                                   help="Training recipe (model.recipes): reference (the shipped model's), warmup "
-                                       "(issue 15's), warmup_thin (warmup; the inference fill projection on one-cell-thick "
-                                       "cells only), warmup_low (warmup_thin at a warm-up peak rate of 3e-4, not 1e-3) or "
-                                       "distill (warmup + quilt's outputs as half the targets); recorded in the checkpoint, a resume must name the same."),
+                                       "(issue 15's), warmup_thin (warmup; the inference fill projection on "
+                                       "one-cell-thick cells only), warmup_low (warmup_thin at a warm-up peak rate "
+                                       "of 3e-4, not 1e-3) or distill (warmup + quilt's outputs as half the "
+                                       "targets); recorded in the checkpoint, a resume must name the same."),
     seed: int = typer.Option(0, "--seed"),
     device: str = typer.Option(Device.AUTO.value, "--device", help="auto, cpu, cuda or cuda:N."),
     checkpoint_every: int = typer.Option(100, "--checkpoint-every", help="Iterations between last.pt saves."),
