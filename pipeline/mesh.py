@@ -34,7 +34,7 @@ from core.errors import MeshingError
 from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR, FineGrid
 from core.recipe import AssetUse, ExportSettings, MeshResolution
 from pipeline.palette import palette_rgba
-from pipeline.simplify import decimate, drop_coincident_faces, split_pinches
+from pipeline.simplify import close_pinches, decimate, drop_coincident_faces
 
 if TYPE_CHECKING:
     import trimesh
@@ -345,7 +345,7 @@ def to_trimesh(pieces: list[Piece], origin_m, voxel_size_m: float, colors: bool)
         faces = inverse.reshape(-1)[faces]
         rgba = rgba[first] if rgba is not None else None
         faces = drop_coincident_faces(faces)
-        source, faces = split_pinches(faces, len(verts))  # the weld merged the pieces' own pinch copies
+        source, faces = close_pinches(faces, verts)  # the weld merged the pieces' own pinch copies
         verts = verts[source]
         rgba = rgba[source] if rgba is not None else None
     origin = np.asarray(origin_m, dtype=np.float64)
