@@ -150,7 +150,7 @@ def split_pinches(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.nd
     return unchanged
 
 
-#: Rounds of ``close_pinches`` (a round collapses edges that share no vertex; measured: two close the showcase).
+#: Most rounds of ``close_pinches`` (a round changes edges that share no vertex; two close the showcase's).
 CLOSE_ROUNDS = 8
 
 
@@ -162,8 +162,10 @@ def close_pinches(faces: np.ndarray, vertices: np.ndarray) -> tuple[np.ndarray, 
     end whose move turns none of the faces around the other end over (the edge's own faces become
     degenerate and go); when both would fold a face, two of its faces (one winding it each way) get their
     shared edge flipped instead (``_flip_one_pair``: no vertex moves). Pinched vertices are then split
-    again; up to ``CLOSE_ROUNDS`` rounds, each over edges with no vertex near another's change. The collapsed edges are 1–5 fine voxels long on the
-    showcase (castle_word 22, the mushroom 10, at 60 k and 26 k triangles). Vertices stay input vertices.
+    again; up to ``CLOSE_ROUNDS`` rounds, each over edges with no vertex near another's change. A vertex on
+    an open boundary (a block's side, welded to the next block's later) never moves, and an edge in an odd
+    number of faces (next to a hole) is left. The collapsed edges are 1–5 fine voxels long on the showcase
+    (castle_word 22, the mushroom 10, at 60 k and 26 k triangles). Vertices stay input vertices.
 
     Args:
         faces: (F, 3) int64 indices into ``vertices``; vertices: (V, 3) float positions.
@@ -174,26 +176,31 @@ def close_pinches(faces: np.ndarray, vertices: np.ndarray) -> tuple[np.ndarray, 
     source, faces = split_pinches(faces, len(vertices))
     for _ in range(CLOSE_ROUNDS):
         order, starts, counts = edge_groups(faces, len(source))
-        stuck = np.flatnonzero(counts > 2)
+        stuck = np.flatnonzero((counts > 2) & (counts % 2 == 0))  # an odd count borders a hole: left
         if len(stuck) == 0:
             break
         remap = np.arange(len(source))
-        moved: set[int] = set()
         corners = faces.reshape(-1)
+        # vertices on an open boundary (a block's side that the next block continues) never move
+        border = order[starts[counts == 1]]
+        moved = set(corners[border].tolist()) | set(corners[3 * (border // 3) + (border + 1) % 3].tolist())
+        pinned, acted = frozenset(moved), False
         for g in stuck:
             h = order[starts[g]]
             a, b = int(corners[h]), int(corners[3 * (h // 3) + (h + 1) % 3])
-            if a in moved or b in moved:
+            if (a in moved and a not in pinned) or (b in moved and b not in pinned):
                 continue  # an edge next to one collapsed this round waits for the next
             for keep, gone in ((min(a, b), max(a, b)), (max(a, b), min(a, b))):
-                if not _folds(faces, vertices[source], gone, keep):
+                if gone not in moved and not _folds(faces, vertices[source], gone, keep):
                     remap[gone] = keep  # every vertex next to it waits for the next round
                     moved.update(faces[(faces == gone).any(axis=1)].reshape(-1).tolist())
+                    acted = True
                     break
             else:  # both collapses fold a face: flip the edge between two of its faces instead
                 flipped = _flip_one_pair(faces, vertices[source], order[starts[g]:starts[g] + counts[g]])
                 moved.update(flipped + [a, b] if flipped else [])
-        if not moved:
+                acted = acted or bool(flipped)
+        if not acted:
             break
         faces = drop_coincident_faces(remap[faces])
         again, faces = split_pinches(faces, len(source))
