@@ -229,7 +229,10 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
     samples = box_average(occupancy, step)
     level = iso if step == 1 else max(iso, HALF_RES_LEVEL)
     if step > 1:  # material thinner than a sample would vanish from the average: keep a cell's share of it
+        seam = samples[0].copy() if open_x[0] else None
         keep_thin_cells(samples, occupancy, step, level, iso)
+        if seam is not None:  # the plane shared with the previous block is its head too, never raised there:
+            samples[0] = seam  # both must mesh the same values, or the pieces do not weld (open edges)
     cropped = crop_padded(samples, level, open_x)
     if cropped is None:
         if step > 1 and not any(open_x) and crop_padded(occupancy, iso) is not None:

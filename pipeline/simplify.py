@@ -248,12 +248,14 @@ def _folds(faces: np.ndarray, positions: np.ndarray, gone: int, keep: int) -> bo
 
 
 def drop_coincident_faces(faces: np.ndarray) -> np.ndarray:
-    """(F', 3) faces without degenerate faces and without faces that share all three vertices.
+    """(F', 3) faces without degenerate faces, and with each set of faces on the same three vertices resolved.
 
-    Strong decimation occasionally folds a thin spot into two back-to-back
-    triangles on the same three vertices (a zero-volume fin); their edges are
-    then used four times and the mesh is no longer watertight. Removing every
-    copy of such a triangle restores a closed 2-manifold.
+    Strong decimation occasionally folds a thin spot into two back-to-back triangles on the same three
+    vertices (a zero-volume fin); their edges are then used four times and the mesh is no longer watertight:
+    such pairs cancel (both go). It also leaves, rarely, a triangle twice with the same winding, where the
+    surface needs one of them: removing both would open a hole (3 open edges each, seen on the batch's
+    mushrooms and signs). So per set of faces on the same vertices, the windings are summed (+1 for one
+    orientation, −1 for the other): a sum of 0 drops them all, any other keeps one face, wound as the sum.
     """
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
     if len(faces) == 0:
@@ -265,6 +267,19 @@ def drop_coincident_faces(faces: np.ndarray) -> np.ndarray:
         _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
     else:
         _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return faces[counts[inverse.ravel()] == 1]
+    inverse = inverse.ravel()
+    if (counts == 1).all():
+        return faces
+    # winding: +1 when (a, b, c) is a rotation of its sorted order, −1 otherwise
+    low = np.argmin(faces, axis=1)
+    after_low = faces[np.arange(len(faces)), (low + 1) % 3]
+    winding = np.where(after_low < faces[np.arange(len(faces)), (low + 2) % 3], 1, -1)
+    net = np.zeros(len(counts), dtype=np.int64)
+    np.add.at(net, inverse, winding)
+    keep = counts[inverse] == 1
+    # of a set that does not cancel, the first face wound as the sum stays
+    shared = np.flatnonzero((counts[inverse] > 1) & (net[inverse] != 0) & (winding == np.sign(net[inverse])))
+    keep[shared[np.unique(inverse[shared], return_index=True)[1]]] = True
+    return faces[keep]
 
 

@@ -156,6 +156,15 @@ def test_drop_coincident_faces_removes_fins_and_degenerates():
     np.testing.assert_array_equal(drop_coincident_faces(faces), [[0, 1, 2], [5, 6, 7]])
 
 
+def test_a_triangle_twice_with_one_winding_keeps_one_copy():
+    """Removing both copies would open a hole; of three copies (two one way, one the other) one stays, as two."""
+    faces = np.array([[0, 1, 2], [1, 2, 0], [3, 4, 5], [5, 3, 4], [4, 3, 5], [6, 7, 8]])
+    np.testing.assert_array_equal(drop_coincident_faces(faces), [[0, 1, 2], [3, 4, 5], [6, 7, 8]])
+    closed = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]])  # a tetrahedron
+    doubled = np.concatenate([closed, closed[2:3]])  # one face twice: edges in three faces
+    assert trimesh.Trimesh(np.eye(4)[:, :3] + 0.1, drop_coincident_faces(doubled), process=False).is_watertight
+
+
 def test_bounded_smoothing_moves_no_vertex_farther_than_the_bound_and_keeps_block_borders():
     rng = np.random.default_rng(0)
     occ = np.zeros((30, 30, 30), np.float32)
