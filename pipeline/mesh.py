@@ -348,10 +348,9 @@ def to_trimesh(pieces: list[Piece], origin_m, voxel_size_m: float, colors: bool)
         faces = inverse.reshape(-1)[faces]
         rgba = rgba[first] if rgba is not None else None
         faces = drop_coincident_faces(faces)
-    # the weld merged the pieces' own pinch copies, and decimation leaves edges a split cannot part: close them
-    source, faces = close_pinches(faces, verts)
-    verts = verts[source]
-    rgba = rgba[source] if rgba is not None else None
+        source, faces = close_pinches(faces, verts)  # the weld merged the pieces' own pinch copies
+        verts = verts[source]
+        rgba = rgba[source] if rgba is not None else None
     origin = np.asarray(origin_m, dtype=np.float64)
     verts_m = origin + (verts + 0.5) * float(voxel_size_m)
     mesh = trimesh.Trimesh(verts_m, faces, vertex_colors=rgba, process=False, validate=False)

@@ -219,7 +219,6 @@ def _flip_one_pair(faces: np.ndarray, positions: np.ndarray, half_edges: np.ndar
     face = half_edges // 3
     a = faces.reshape(-1)[half_edges]
     forward, backward = face[a == a[0]], face[a != a[0]]
-    normal = lambda t: np.cross(positions[t[1]] - positions[t[0]], positions[t[2]] - positions[t[0]])  # noqa: E731
     for f in forward:
         for g in backward:
             i = int(np.flatnonzero(faces[f] == a[0])[0])
@@ -227,10 +226,10 @@ def _flip_one_pair(faces: np.ndarray, positions: np.ndarray, half_edges: np.ndar
             d = int(np.setdiff1d(faces[g], (va, vb))[0])
             if c == d or ((faces == c).any(axis=1) & (faces == d).any(axis=1)).any():
                 continue
-            new_f, new_g = (c, va, d), (d, vb, c)
-            if normal(new_f) @ normal(faces[f]) <= 0 or normal(new_g) @ normal(faces[g]) <= 0:
+            new = np.array([(c, va, d), (d, vb, c)])
+            if (np.einsum("ij,ij->i", _normals(positions[new]), _normals(positions[faces[[f, g]]])) <= 0).any():
                 continue
-            faces[f], faces[g] = new_f, new_g
+            faces[f], faces[g] = new
             return [int(c), d]
     return []
 
@@ -242,8 +241,12 @@ def _folds(faces: np.ndarray, positions: np.ndarray, gone: int, keep: int) -> bo
         return False
     before = positions[around]
     after = np.where((around == gone)[:, :, None], positions[keep], before)
-    normal = lambda p: np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])  # noqa: E731
-    return bool((np.einsum("ij,ij->i", normal(before), normal(after)) <= 0).any())
+    return bool((np.einsum("ij,ij->i", _normals(before), _normals(after)) <= 0).any())
+
+
+def _normals(corners: np.ndarray) -> np.ndarray:
+    """(n, 3) unnormalised normals of triangles given by their (n, 3, 3) corner positions (right hand)."""
+    return np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
 
 
 def drop_coincident_faces(faces: np.ndarray) -> np.ndarray:
