@@ -190,6 +190,7 @@ class DecollageDetailizer:
                     hint="reinstall decollage, pass a checkpoint, or use detailizer: upsample",
                 )
             checkpoint = DEFAULT_CHECKPOINT
+        self._owner_pid = os.getpid()  # a forked child runs on one thread (``_set_threads``)
         self.checkpoint_path = Path(checkpoint)
         self.input_files: tuple[Path, ...] = (self.checkpoint_path.resolve(),)  # what this detailizer read
         self.device = resolve_device(device)
@@ -323,10 +324,13 @@ class DecollageDetailizer:
                 **exemplar_extras(self.style_set[0], [grid.style_names[i] for i in np.unique(grid.style[occ])])}
 
     def _set_threads(self, threads: int) -> None:
+        """CPU: ``threads`` for torch's kernels, but one in a process forked from the one that loaded the model
+        (``pipeline/chunks.py``'s block process): the OpenMP thread pool does not survive a fork, and a forked
+        child that enters a parallel region hangs. Builds ask for one thread anyway (``ASSET_THREADS``)."""
         import torch
 
         if self.device.type == "cpu":
-            torch.set_num_threads(threads)
+            torch.set_num_threads(threads if os.getpid() == self._owner_pid else 1)
         else:  # the same bytes on every run: no autotuned or atomic-add (transposed-conv) kernels
             torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark = True, False
 

@@ -34,7 +34,7 @@ from core.errors import MeshingError
 from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR, FineGrid
 from core.recipe import AssetUse, ExportSettings, MeshResolution
 from pipeline.palette import palette_rgba
-from pipeline.simplify import decimate, drop_coincident_faces, split_pinches
+from pipeline.simplify import close_pinches, decimate, drop_coincident_faces
 
 if TYPE_CHECKING:
     import trimesh
@@ -229,7 +229,10 @@ def mesh_piece(occupancy: np.ndarray, style: np.ndarray | None, style_names: tup
     samples = box_average(occupancy, step)
     level = iso if step == 1 else max(iso, HALF_RES_LEVEL)
     if step > 1:  # material thinner than a sample would vanish from the average: keep a cell's share of it
+        seam = samples[0].copy() if open_x[0] else None
         keep_thin_cells(samples, occupancy, step, level, iso)
+        if seam is not None:  # the plane shared with the previous block is its head too, never raised there:
+            samples[0] = seam  # both must mesh the same values, or the pieces do not weld (open edges)
     cropped = crop_padded(samples, level, open_x)
     if cropped is None:
         if step > 1 and not any(open_x) and crop_padded(occupancy, iso) is not None:
@@ -345,7 +348,7 @@ def to_trimesh(pieces: list[Piece], origin_m, voxel_size_m: float, colors: bool)
         faces = inverse.reshape(-1)[faces]
         rgba = rgba[first] if rgba is not None else None
         faces = drop_coincident_faces(faces)
-        source, faces = split_pinches(faces, len(verts))  # the weld merged the pieces' own pinch copies
+        source, faces = close_pinches(faces, verts)  # the weld merged the pieces' own pinch copies
         verts = verts[source]
         rgba = rgba[source] if rgba is not None else None
     origin = np.asarray(origin_m, dtype=np.float64)

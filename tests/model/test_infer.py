@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -257,6 +258,42 @@ def test_column_parts_keep_the_thin_projection_of_the_whole_grid(tmp_path):
     above = joined.reshape(9, 16, 4, 16, 3, 16) > ISO_LEVEL
     fill = above.mean(axis=(1, 3, 5))
     assert fill[4, 2:, 0:2].min() < 0.3  # the post's cells were not raised as thin ones (they are not)
+
+
+_FORKED_HALVES = """
+import sys
+import numpy as np
+from core.detailizer import kernel_threads
+from core.grid import LabeledGrid
+from model.infer import DecollageDetailizer
+from pipeline.chunks import detailize_and_mesh
+from pipeline.mesh import MeshSettings
+
+det = DecollageDetailizer(sys.argv[1], device="cpu")
+occ = np.zeros((10, 4, 3), bool)
+occ[:, 1:3, 1] = True
+grid = LabeledGrid(occ, np.where(occ, 0, -1).astype(np.int16), np.where(occ, 0, -1).astype(np.int16),
+                   ("body",), ("tower",), 0.1)
+with kernel_threads(2):
+    det.detailize(grid)  # this process's OpenMP pool now has two threads
+    columns = lambda g: det.column_detailizer(g)
+    detailize_and_mesh(grid, det.detailize, MeshSettings(max_triangles=None), processes=2, columns=columns)
+print("done")
+"""
+
+
+def test_a_forked_block_process_runs_the_model_on_one_thread(tmp_path):
+    """With two threads asked for, the half in the forked child must not hang in OpenMP's broken pool."""
+    import subprocess
+    import sys
+
+    cfg = dataclasses.replace(ModelConfig.lean(len(PARTS), len(STYLES)).scaled(0.125), min_cell_fill=0.5)
+    torch.manual_seed(2)
+    path = save_checkpoint(tmp_path / "fill.pt", Checkpoint(cfg, STYLES, PARTS, (PARTS, ("body",), PARTS),
+                                                            Generator(cfg).state_dict(), {"step": 0}))
+    run = subprocess.run([sys.executable, "-c", _FORKED_HALVES, str(path)], capture_output=True, text=True,
+                         timeout=120, cwd=Path(__file__).resolve().parents[2])
+    assert run.returncode == 0 and run.stdout.strip() == "done", run.stderr[-2000:]
 
 
 @pytest.mark.e2e  # the shipped model at 256³

@@ -164,6 +164,27 @@ def test_a_column_detailizer_gives_each_piece_its_own_columns_bit_for_bit_in_two
     assert len(reference.mesh.faces) == len(one.mesh.faces) and one.structure == reference.structure
 
 
+def test_a_thin_feature_on_a_seam_welds_at_half_resolution(small_blocks):
+    """A cell whose material is thinner than a sample is raised to keep it (``keep_thin_cells``); when that cell
+    starts a block, the plane it shares with the previous block must stay as that block meshes it."""
+    grid = bar_grid(40)
+    occ = grid.occupancy.copy()
+    occ[10, 3, 1] = True  # a cell above the bar, right after the seam at column 10 (plan: 0-10, 10-20, ...)
+    grid = LabeledGrid(occ, np.where(occ, 0, -1).astype(np.int16), np.where(occ, 0, -1).astype(np.int16),
+                       grid.part_names, grid.style_names, grid.voxel_size_m, grid.origin_m)
+
+    def sheet(columns: LabeledGrid) -> FineGrid:
+        fine = local_detailizer(columns)
+        x0 = 10 * F - int(round(columns.origin_m[0] / columns.voxel_size_m - grid.origin_m[0] / grid.voxel_size_m)) * F
+        if 0 <= x0 < fine.occupancy.shape[0]:
+            fine.occupancy[x0:x0 + F, 3 * F:4 * F, F:2 * F] = 0.0
+            fine.occupancy[x0:x0 + F, 3 * F, F + 2:2 * F - 2] = 1.0  # a sheet one voxel thick, on the bar's top
+        return fine
+
+    mesh = detailize_and_mesh(grid, sheet, MeshSettings(max_triangles=None, sample_step=2)).mesh
+    assert mesh.is_watertight
+
+
 def test_mesh_halves_balance_the_coarse_surface():
     occ = np.zeros((20, 4, 4), bool)
     occ[:, 1:3, 1:3] = True
