@@ -20,23 +20,34 @@ from pipeline.watch import Rebuild, watch_build, watched_files
 from sources.vox_file import write_vox
 
 N_ASSETS = 8
-#: The acceptance bound: an edit is rebuilt within this long of the save (2 cores, cached batch).
+#: The acceptance bound: an edit is rebuilt within this long of the save (2 cores, cached batch), on the
+#: machine kind it was set for.
 LATENCY_S = 2.0
+#: The reference workload's median (``evaluation.benchmarking.reference_workload_seconds``) on that machine
+#: (2-core AMD EPYC, quiet): a machine that runs it slower — or the same VM in a slow phase, which swings 2×
+#: within minutes — gets a bound as much longer (never shorter): speed compares across machines as a ratio.
+REFERENCE_NOMINAL_S = 0.22
 #: From the save to the start of the rebuild (event delivery and the debounce's quiet period).
 DETECT_S = 1.0
 
 
 def _check_latency(round_: Rebuild, what: str) -> None:
-    """The 2 s bound on a machine that is not oversubscribed; under contention (other builds running on
-    the same cores) only the detection delay is held to its bound. The figures are printed (pytest -s)."""
+    """The 2 s bound (scaled by the reference workload timed now) on a machine that is not oversubscribed;
+    under contention (other builds running on the same cores) only the detection delay is held to its bound.
+    The figures are printed (pytest -s)."""
+    from evaluation.benchmarking import reference_workload_seconds
+
     asset = next(r for r in round_.reports if not r.cached)
     load = os.getloadavg()[0]
+    reference = reference_workload_seconds(repeats=3)["median_s"]
+    bound = LATENCY_S * max(1.0, reference / REFERENCE_NOMINAL_S)
     print(f"\nwatch latency ({what}): {round_.since_save_s:.2f} s from the save to the manifest: detected after "
           f"{round_.detected_s:.2f} s, round {round_.build_s:.2f} s (the asset's stages "
-          f"{sum(asset.timings_s.values()):.2f} s), CPU {round_.cpu_s:.2f} s; load average {load:.1f} on {os.cpu_count()} cores")
+          f"{sum(asset.timings_s.values()):.2f} s), CPU {round_.cpu_s:.2f} s; load average {load:.1f} on "
+          f"{os.cpu_count()} cores; reference workload {reference:.3f} s, bound {bound:.2f} s")
     assert round_.detected_s < DETECT_S
     if load <= (os.cpu_count() or 1):
-        assert round_.since_save_s < LATENCY_S
+        assert round_.since_save_s < bound
 
 
 def _model(height: int) -> np.ndarray:
