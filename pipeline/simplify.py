@@ -184,24 +184,22 @@ def close_pinches(faces: np.ndarray, vertices: np.ndarray) -> tuple[np.ndarray, 
         corners = faces.reshape(-1)
         # vertices on an open boundary (a block's side that the next block continues) never move
         border = order[starts[counts == 1]]
-        moved = set(corners[border].tolist()) | set(corners[3 * (border // 3) + (border + 1) % 3].tolist())
-        pinned, acted = frozenset(moved), False
+        pinned = set(corners[border].tolist()) | set(corners[3 * (border // 3) + (border + 1) % 3].tolist())
+        busy: set[int] = set()  # vertices next to a change of this round: their edges wait for the next
         for g in stuck:
             h = order[starts[g]]
             a, b = int(corners[h]), int(corners[3 * (h // 3) + (h + 1) % 3])
-            if (a in moved and a not in pinned) or (b in moved and b not in pinned):
-                continue  # an edge next to one collapsed this round waits for the next
+            if a in busy or b in busy:
+                continue
             for keep, gone in ((min(a, b), max(a, b)), (max(a, b), min(a, b))):
-                if gone not in moved and not _folds(faces, vertices[source], gone, keep):
-                    remap[gone] = keep  # every vertex next to it waits for the next round
-                    moved.update(faces[(faces == gone).any(axis=1)].reshape(-1).tolist())
-                    acted = True
+                if gone not in pinned and not _folds(faces, vertices[source], gone, keep):
+                    remap[gone] = keep
+                    busy.update(faces[(faces == gone).any(axis=1)].reshape(-1).tolist())
                     break
             else:  # both collapses fold a face: flip the edge between two of its faces instead
                 flipped = _flip_one_pair(faces, vertices[source], order[starts[g]:starts[g] + counts[g]])
-                moved.update(flipped + [a, b] if flipped else [])
-                acted = acted or bool(flipped)
-        if not acted:
+                busy.update(flipped + [a, b] if flipped else [])
+        if not busy:
             break
         faces = drop_coincident_faces(remap[faces])
     used, faces = np.unique(faces, return_inverse=True)
