@@ -33,7 +33,7 @@ from pipeline.mesh import (
     mesh_sample_step,
     signed_volume,
 )
-from pipeline.simplify import drop_coincident_faces, split_pinches
+from pipeline.simplify import drop_coincident_faces, edge_groups, split_pinches
 from pipeline.palette import NEUTRAL_RGBA, PALETTE, palette_rgba, style_color
 from core.recipe import ExportFormat, ExportSettings, MeshResolution, Pivot
 
@@ -298,6 +298,12 @@ def test_a_pinch_along_an_edge_is_split_into_two_closed_sheets():
     # a closed 2-manifold is returned as it was
     same_source, same = split_pinches(upper, 6)
     assert (same == upper).all() and (same_source == np.arange(6)).all()
+    # beside an open border (a block's side): the border's edges stay open and the pinch is still split
+    sheet = np.array([[6, 7, 8]])
+    open_verts = np.concatenate([verts, [[3, 0, 0], [4, 0, 0], [3, 1, 0]]])
+    source, split = split_pinches(np.concatenate([faces, sheet]), len(open_verts))
+    counts = np.bincount(edge_groups(split, len(source))[2], minlength=5)
+    assert len(source) == 11 and counts[1] == 3 and counts[2] == 12 and counts[3:].sum() == 0
 
 
 def test_splitting_pinches_of_decimated_meshes_never_opens_holes(sphere_grid, monkeypatch):
