@@ -24,7 +24,7 @@ write the fine occupancy field (16X, 16Y, 16Z) float32 in [0, 1].
 * Normalisation: the weights of the occupied cells around a cell sum to 1
   except in bands towards empty neighbours; the sum there depends only on the
   cell's 3×3×3 neighbourhood, so it is computed once per neighbourhood
-  pattern (``den_block``) instead of accumulated voxel by voxel. The same
+  pattern (``den_blocks``) instead of accumulated voxel by voxel. The same
   function gives what the (all-ones) interior blocks add to a cell, so only
   surface cells copy blocks.
 * Memory: the grid is assembled in slabs of ``SLAB_CELLS`` coarse cells along
@@ -90,19 +90,22 @@ def neighbourhood_codes(occ: np.ndarray) -> np.ndarray:
 
 
 FULL_CODE = (1 << 27) - 1
-_DEN: dict[tuple[int, int], np.ndarray] = {}
 
 
-def den_block(code: int, halo: int = HALO) -> np.ndarray:
-    """(CELL,)*3 float32: the sum of the blend weights of the occupied cells of a 3×3×3 neighbourhood
-    (``code``) over the middle cell — what the blended sum there is divided by (1 when all 27 are
-    occupied; below 1 in bands towards empty neighbours). Cached per neighbourhood."""
-    key = (code, halo)
-    if key not in _DEN:
-        pattern = ((code >> np.arange(27)) & 1).reshape(3, 3, 3).astype(np.float32)
-        u = neighbour_ramps(halo)
-        _DEN[key] = np.einsum("abc,ax,by,cz->xyz", pattern, u, u, u).astype(np.float32)
-    return _DEN[key]
+def den_blocks(codes: np.ndarray, halo: int = HALO) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct 3×3×3 neighbourhood ``codes`` (m,) and, per code, (m, CELL, CELL, CELL) float32 the sum
+    of the blend weights of its occupied cells over the middle cell — what the blended sum there is divided
+    by (1 when all 27 are occupied; below 1 in bands towards empty neighbours).
+
+    All of them in one product: every weight is a multiple of 1/(4·halo) (``ramp_1d``), so the products
+    and sums are exact in float32 and do not depend on the order they are taken in (one code alone gives
+    the same bits).
+    """
+    uniq = np.unique(np.asarray(codes, dtype=np.int64))
+    pattern = ((uniq[:, None] >> np.arange(27)) & 1).astype(np.float32)  # bit = a·9 + b·3 + c
+    u = neighbour_ramps(halo)
+    weights = np.einsum("ax,by,cz->abcxyz", u, u, u).reshape(27, CELL**3)  # each neighbour's weight over the cell
+    return uniq, (pattern @ weights).reshape(-1, CELL, CELL, CELL)
 
 
 def smooth_source(labels: np.ndarray, offset=(0, 0, 0), resolution: int | None = None,
@@ -141,8 +144,8 @@ def assemble(content: Content, lib: Library, fine: list[np.ndarray], field: np.n
 
     Per slab: the surface cells add their weighted source blocks to ``num``; the interior cells'
     blocks are all ones, so what they add over a cell is the sum of their weights there, which
-    depends only on which of the cell's 27 neighbourhood cells are interior (``den_block`` of that
-    pattern); each occupied cell is then divided by the sum of all weights over it (``den_block`` of
+    depends only on which of the cell's 27 neighbourhood cells are interior (``den_blocks`` of that
+    pattern); each occupied cell is then divided by the sum of all weights over it (``den_blocks`` of
     its occupancy pattern; 1 when all 27 are occupied). Empty cells stay 0.
     """
     X, Y, Z = content.shape
@@ -155,6 +158,9 @@ def assemble(content: Content, lib: Library, fine: list[np.ndarray], field: np.n
     b = CELL + 2 * halo
     tmp = np.empty((b, b, b), dtype=np.float32)
     all_cells = np.argwhere(occ)
+    cell_codes, cell_inner = codes[occ], inner[occ]  # per cell of all_cells (both C order)
+    uniq, dens = den_blocks(np.concatenate([cell_codes, cell_inner]), halo)
+    code_at, inner_at = np.searchsorted(uniq, cell_codes), np.searchsorted(uniq, cell_inner)
     for x0 in range(0, X, SLAB_CELLS):
         x1 = min(X, x0 + SLAB_CELLS)
         length = (x1 - x0) * CELL + 2 * halo
@@ -166,17 +172,18 @@ def assemble(content: Content, lib: Library, fine: list[np.ndarray], field: np.n
             np.multiply(weights_u8, source_block(lib, fine, int(field[content.ids[i, j, k]]), halo), out=tmp)
             num[lo:hi, j * CELL:j * CELL + b, k * CELL:k * CELL + b] += tmp[lo - bx:hi - bx]
         core = num[halo:halo + (x1 - x0) * CELL, halo:halo + Y * CELL, halo:halo + Z * CELL]
-        for i, j, k in all_cells[(all_cells[:, 0] >= x0) & (all_cells[:, 0] < x1)]:
+        for c in np.flatnonzero((all_cells[:, 0] >= x0) & (all_cells[:, 0] < x1)):
+            i, j, k = all_cells[c]
             target = out[i * CELL:(i + 1) * CELL, j * CELL:(j + 1) * CELL, k * CELL:(k + 1) * CELL]
-            code, icode = int(codes[i, j, k]), int(inner[i, j, k])
+            code, icode = int(cell_codes[c]), int(cell_inner[c])
             if code == FULL_CODE and icode == FULL_CODE:
                 target.fill(1.0)  # deep inside: only blocks of ones reach it
                 continue
             region = core[(i - x0) * CELL:(i - x0 + 1) * CELL, j * CELL:(j + 1) * CELL, k * CELL:(k + 1) * CELL]
             if icode:
-                region += den_block(icode, halo)
+                region += dens[inner_at[c]]
             if code != FULL_CODE:
-                region /= den_block(code, halo)
+                region /= dens[code_at[c]]
             region[np.abs(region - np.float32(ISO_LEVEL)) < 1e-4] = np.float32(ISO_LEVEL - 1e-3)  # never on the iso
             target[...] = region  # weighted means of values in [0, 1]; empty cells are never written
     return out
