@@ -19,7 +19,7 @@ from core.grid import FineGrid, LabeledGrid
 
 
 class Detailizer(Protocol):
-    """What the pipeline calls; three optional parts serve the build's cache, its determinism and its speed:
+    """What the pipeline calls; four optional parts serve the build's cache, its determinism and its speed:
 
     - ``input_files``: every file the detailizer loaded (its checkpoint, a style set...), when it
       defines it; a build records them with their sha256 in each asset's input closure
@@ -32,6 +32,9 @@ class Detailizer(Protocol):
       at column ``start``) as ``detailize`` would give them; a part's bytes may depend only on the grid and
       its columns. The build then detailizes an asset's two halves in two processes (``pipeline/chunks.py``).
       A detailizer whose output depends on the whole shape at once (the quilt's search) does not define it.
+    - ``prepare(grid)``, when it defines it: loads now whatever ``detailize`` will load for this grid (the
+      quilt's exemplar tables), so that a process forked afterwards (``pipeline/chunks.py``) inherits it
+      instead of loading it again beside its parent. Output must not depend on whether it ran.
     """
 
     name: str

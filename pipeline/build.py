@@ -248,6 +248,11 @@ def _build(asset: Asset, loaded: LoadedRecipe, index: int, out_dir: Path, progre
     with kernel_threads(ASSET_THREADS), blas_threads(ASSET_THREADS):  # block by block (pipeline/chunks.py)
         seed = asset.detailize.seed
         by_columns = getattr(detailizer, "column_detailizer", None)  # optional (core/detailizer.py)
+        prepare = getattr(detailizer, "prepare", None)  # optional: loads before the block process forks
+        if prepare is not None:
+            started = time.perf_counter()
+            prepare(grid)
+            report.timings_s["detailize"] = report.timings_s.get("detailize", 0.0) + time.perf_counter() - started
         detailed = detailize_and_mesh(grid, lambda g: detailizer.detailize(g, seed=seed),
                                       MeshSettings.from_export(export, grid.occupancy), report.timings_s,
                                       on_block=fine_vox.add if fine_vox is not None else None,

@@ -109,6 +109,22 @@ class QuiltDetailizer:
                         voxel_size_m=grid.voxel_size_m / f, origin_m=grid.origin_m, detailizer=self.name,
                         extras=extras)
 
+    def prepare(self, grid: LabeledGrid) -> None:
+        """Load the tables and smoothed exemplars of the styles ``grid`` uses (the ``prepare`` part of the
+        protocol: a block process forked afterwards inherits them; ≈ 0.3 s per 256³ exemplar on first use).
+
+        Raises:
+            DetailizeError: a style or part name the set does not have (as ``detailize`` would).
+        """
+        occ = grid.occupancy
+        if not occ.any():
+            return
+        map_parts(grid.part_names, np.unique(grid.part[occ]), self.style_set)
+        style_ex = map_styles(grid.style_names, np.unique(grid.style[occ]), self.style_set)
+        used = [int(e) for e in np.unique(style_ex[np.clip(np.unique(grid.style[occ]), 0, None)])]
+        self.library(used)
+        self.fine_sources(tuple(used[-FINE_CACHE:]))
+
     # ------------------------------------------------------------------ steps
 
     def source_field(self, grid: LabeledGrid, seed: int = 0):

@@ -16,6 +16,7 @@ from core.errors import DetailizeError
 from core.grid import EMPTY, ISO_LEVEL, LabeledGrid
 from model.quilt import QuiltDetailizer
 from model.quilt import assemble as asm
+from model.quilt import detailizer as quilt_detailizer
 from model.quilt import library as libm
 from model.quilt.search import continuation
 from stylesets.format import THINGS, Exemplar, StyleSet, build_set, encode_set
@@ -143,6 +144,28 @@ def test_deterministic_and_seeded(two):
     b = QuiltDetailizer(style_set=two.style_set).detailize(_grid(occ), seed=3).occupancy
     assert np.array_equal(a, b)
     assert two.detailize(_grid(occ), seed=3).extras["seed"] == 3
+
+
+def test_prepare_loads_what_detailize_needs_and_changes_nothing(two, monkeypatch):
+    """``prepare`` (run before a block process forks) builds the grid's exemplar tables and smoothed
+    exemplars, so ``detailize`` loads nothing more; the output is the same as without it."""
+    occ = np.zeros((8, 4, 4), bool)
+    occ[1:7, 1:3, 1:3] = True
+    style_of = (np.arange(8) >= 4)[:, None, None].astype(np.int16) * np.ones((8, 4, 4), np.int16)
+    grid = _grid(occ, styles=("studded", "ribbed"), style_of=style_of)
+    cold = QuiltDetailizer(style_set=two.style_set)
+    want = cold.detailize(grid, seed=2).occupancy
+    fresh = QuiltDetailizer(style_set=two.style_set)
+    fresh.prepare(grid)
+    assert sorted(fresh._tables) == [0, 1] and sorted(fresh._fine) == [0, 1]
+
+    def no_more(*args):
+        raise AssertionError("detailize loaded an exemplar that prepare should have loaded")
+    monkeypatch.setattr(quilt_detailizer.libm, "build_table", no_more)
+    monkeypatch.setattr(quilt_detailizer.asm, "smooth_source", no_more)
+    assert np.array_equal(fresh.detailize(grid, seed=2).occupancy, want)
+    with pytest.raises(DetailizeError, match="unknown style"):
+        fresh.prepare(_grid(occ, styles=("nope",)))
 
 
 def test_slabs_do_not_change_the_result(two, monkeypatch):
