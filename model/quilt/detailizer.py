@@ -122,7 +122,7 @@ class QuiltDetailizer:
         map_parts(grid.part_names, np.unique(grid.part[occ]), self.style_set)
         style_ex = map_styles(grid.style_names, np.unique(grid.style[occ]), self.style_set)
         used = [int(e) for e in np.unique(style_ex[np.clip(np.unique(grid.style[occ]), 0, None)])]
-        self.library(used)
+        self._load_tables(used)
         self.fine_sources(tuple(used[-FINE_CACHE:]))
 
     # ------------------------------------------------------------------ steps
@@ -144,12 +144,16 @@ class QuiltDetailizer:
 
     def library(self, exemplars: list[int]) -> libm.Library:
         """The search library over the given exemplars (set indices), from cached stats and tables."""
+        self._load_tables(exemplars)
+        return libm.combine([self._tables[e] for e in exemplars], exemplars)
+
+    def _load_tables(self, exemplars: list[int]) -> None:
+        """The stats of the set (disk cache) and the tables of ``exemplars`` (set indices), kept in memory."""
         if self._stats is None:
             self._stats = libm.load_stats(self.style_set)
         for e in exemplars:
             if e not in self._tables:
                 self._tables[e] = libm.build_table(self._stats[e])
-        return libm.combine([self._tables[e] for e in exemplars], exemplars)
 
     def fine_sources(self, exemplars: tuple[int, ...]) -> list[np.ndarray]:
         """Smoothed, padded fine occupancy of each exemplar (kept for the last ``FINE_CACHE`` used)."""
