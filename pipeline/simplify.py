@@ -29,13 +29,6 @@ def decimate(verts: np.ndarray, faces: np.ndarray, target: int,
     return np.asarray(verts, dtype=np.float64)[kept], out_f
 
 
-#: A decimated mesh that keeps an edge in more than two faces (one that no split, collapse or flip of
-#: ``close_pinches`` parts) is decimated again to these fractions of its budget, and the first result without
-#: one is kept (else the first): the simplifier then takes other collapses. Measured on the 48-asset batch:
-#: 3 assets kept such an edge, each from one piece; 0.98, 0.97 and 0.95 closed one each.
-RETRY_FRACTIONS = (0.99, 0.98, 0.97, 0.96, 0.95, 0.9)
-
-
 def decimate_kept(verts: np.ndarray, faces: np.ndarray, target: int,
                   lock_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Quadric decimation to at most ``target`` faces: (V',) indices of the input vertices kept (in input
@@ -43,32 +36,11 @@ def decimate_kept(verts: np.ndarray, faces: np.ndarray, target: int,
     follow by indexing).
 
     The simplifier keeps the mesh's topology; ``lock_border`` keeps every vertex on an open
-    boundary where it is (a block's side that another block continues). See ``RETRY_FRACTIONS``.
+    boundary where it is (a block's side that another block continues).
 
     Raises:
         MeshingError: the simplifier failed, could not reach ``target``, or left nothing.
     """
-    kept, faces_out = _decimate_once(verts, faces, target, lock_border)
-    for fraction in RETRY_FRACTIONS:
-        if not _overused(faces_out, len(kept)):
-            break
-        try:
-            retry = _decimate_once(verts, faces, max(4, int(target * fraction)), lock_border)
-        except MeshingError:
-            break  # a budget this small has no room to try: keep the first result
-        if not _overused(retry[1], len(retry[0])):
-            kept, faces_out = retry
-    return kept, faces_out
-
-
-def _overused(faces: np.ndarray, n_vertices: int) -> bool:
-    """Whether an edge of ``faces`` is used by more than two faces."""
-    return len(faces) > 0 and bool((edge_groups(faces, n_vertices)[2] > 2).any())
-
-
-def _decimate_once(verts: np.ndarray, faces: np.ndarray, target: int,
-                   lock_border: bool) -> tuple[np.ndarray, np.ndarray]:
-    """One simplifier pass and its repairs (``decimate_kept`` without the retries)."""
     import meshoptimizer
 
     indices = np.ascontiguousarray(faces, dtype=np.uint32).reshape(-1)

@@ -341,24 +341,6 @@ def test_splitting_pinches_of_decimated_meshes_never_opens_holes(sphere_grid, mo
     assert fixed > 0 and left > 0 and closed_left * 10 <= left
 
 
-def test_a_pinch_no_repair_parts_is_decimated_again(sphere_grid):
-    """A first pass that keeps an edge in four faces (none of split, collapse or flip parts it: a noisy sphere,
-    found by a scan of seeds) is decimated again to a slightly smaller budget, which takes other collapses."""
-    from pipeline import mesh as mesh_mod
-    from pipeline import simplify
-
-    rng = np.random.default_rng(11)
-    occupancy = np.asarray(sphere_grid.occupancy)
-    rough = (occupancy + rng.normal(0, 0.25, occupancy.shape) > 0.5).astype(np.float32)
-    volume, _ = mesh_mod.crop_padded(rough, 0.4)
-    verts, faces = mesh_mod.marching_cubes(volume, 0.4)
-    first_kept, first = simplify._decimate_once(verts, faces, 1500, False)
-    assert simplify._overused(first, len(first_kept))
-    kept, closed = simplify.decimate_kept(verts, faces, 1500)
-    assert not simplify._overused(closed, len(kept)) and len(closed) <= 1500
-    assert len(closed) >= min(simplify.RETRY_FRACTIONS) * len(first)
-
-
 def test_meshing_is_deterministic(sphere_grid):
     a = mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=2000))
     b = mesh_fine_grid(sphere_grid, MeshSettings(max_triangles=2000))
