@@ -5,7 +5,7 @@ every occupied cell raised to half full (the `warmup` recipe's), on the monitor'
 
 A `warmup_low` checkpoint logs the thin-only figure, the `warmup` run logged the all-cells one: this puts both
 on one footing (model/weights/things_selfrec.md, 2026-12-03 afternoon). About 1 min a checkpoint on 2 cores."""
-import dataclasses, json, sys
+import json, sys
 import numpy as np
 from model.checkpoint import load_checkpoint
 from model.data import AugmentConfig, exemplars_from_set

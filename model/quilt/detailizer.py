@@ -116,24 +116,31 @@ class QuiltDetailizer:
         Raises:
             DetailizeError: a style or part name the set does not have (as ``detailize`` would).
         """
-        occ = grid.occupancy
-        if not occ.any():
+        if not grid.occupancy.any():
             return
-        map_parts(grid.part_names, np.unique(grid.part[occ]), self.style_set)
-        style_ex = map_styles(grid.style_names, np.unique(grid.style[occ]), self.style_set)
-        used = [int(e) for e in np.unique(style_ex[np.clip(np.unique(grid.style[occ]), 0, None)])]
+        used = self._set_indices(grid)[2]
         self._load_tables(used)
         self.fine_sources(tuple(used[-FINE_CACHE:]))
 
     # ------------------------------------------------------------------ steps
 
-    def source_field(self, grid: LabeledGrid, seed: int = 0):
-        """(content, library, search result) of a non-empty grid: the search without the assembly."""
+    def _set_indices(self, grid: LabeledGrid) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """The set's indices for a non-empty grid: part index → vocabulary part, (X, Y, Z) exemplar per cell
+        (−1 empty), and the exemplars used, ascending.
+
+        Raises:
+            DetailizeError: a style or part name the set does not have.
+        """
         occ = grid.occupancy
         style_ex = map_styles(grid.style_names, np.unique(grid.style[occ]), self.style_set)
         part_voc = map_parts(grid.part_names, np.unique(grid.part[occ]), self.style_set)
         ex_grid = np.where(occ, style_ex[np.clip(grid.style, 0, None)], -1)
-        used = [int(e) for e in np.unique(ex_grid[occ])]
+        return part_voc, ex_grid, [int(e) for e in np.unique(ex_grid[occ])]
+
+    def source_field(self, grid: LabeledGrid, seed: int = 0):
+        """(content, library, search result) of a non-empty grid: the search without the assembly."""
+        occ = grid.occupancy
+        part_voc, ex_grid, used = self._set_indices(grid)
         lib = self.library(used)
         table_of = np.full(len(self.style_set.exemplars), -1, dtype=np.int64)
         table_of[used] = np.arange(len(used))
