@@ -119,17 +119,26 @@ def _sum_by(index: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
 
 
 def expand(costs: FieldCosts, alpha: np.ndarray) -> int:
-    """One α-expansion in place (``alpha``: the entry α gives each cell, −1 none); returns cells switched.
+    """One α-expansion in place (``alpha``: the entry α gives each cell, −1 none); returns cells switched."""
+    move = best_switch(costs, alpha)
+    return 0 if move is None else apply_switch(costs, alpha, *move)
+
+
+def best_switch(costs: FieldCosts, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool] | None:
+    """The optimal α-switch of the current field, not applied: (cells that take α, their unary cost
+    under α, whether a pair term was clipped), or None when no cell switches.
 
     Binary choice per node (cells where α is valid and new): x = 0 keeps the entry, x = 1 takes α.
     A pair term with E(0,0)=A, E(0,1)=B, E(1,0)=C, E(1,1)=0 (α continues α) is
     A + (C−A)·x_q − C·x_r + (B+C−A)·(1−x_q)·x_r: linear parts go to the terminal edges, the
-    last one is an edge q → r. Pairs with a fixed cell are unary terms of the node.
+    last one is an edge q → r. Pairs with a fixed cell are unary terms of the node. The cut's
+    source side is the set reachable from s in the residual graph (the smallest minimum cut), which
+    does not depend on the flow found: so a graph of disjoint parts gives each part its own cut.
     """
     content, lib, field = costs.content, costs.lib, costs.field
     idx = np.flatnonzero((alpha >= 0) & (alpha != field))
     if len(idx) == 0:
-        return 0
+        return None
     u1 = unary(content, lib, idx, alpha[idx][:, None])[:, 0]
     # The most switching q can save is, per neighbour, its current seam cost, or the largest seam cost
     # when the neighbour may switch too (then q's old entry would meet α). A cell whose unary rise
@@ -142,7 +151,7 @@ def expand(costs: FieldCosts, alpha: np.ndarray) -> int:
     idx, u1 = idx[hopeful], u1[hopeful]
     n = len(idx)
     if n == 0:
-        return 0
+        return None
     nid = np.full(len(content), -1, dtype=np.int64)
     nid[idx] = np.arange(n)
     nb = content.nb[idx]
@@ -164,7 +173,7 @@ def expand(costs: FieldCosts, alpha: np.ndarray) -> int:
     upper = (nid[rr] >= 0) & (di % 2 == 0)
     delta -= _sum_by(qi[upper], c_[upper] - a_[upper], n)
     if not (delta < 0).any():
-        return 0  # no node gains on its own terms: nothing reaches the sink, the cut keeps everything
+        return None  # no node gains on its own terms: nothing reaches the sink, the cut keeps everything
     s, t = n, n + 1
     src, snk = np.flatnonzero(delta > 0), np.flatnonzero(delta < 0)
     u = np.concatenate([np.full(len(src), s), snk, qi[both]])
@@ -182,18 +191,24 @@ def expand(costs: FieldCosts, alpha: np.ndarray) -> int:
     sink_side[reach] = False
     chosen = np.flatnonzero(sink_side[:n])
     if len(chosen) == 0:
-        return 0
-    switch = idx[chosen]
-    if clipped:  # the cut minimised a clipped energy: keep the move only if the true one did not rise
-        changed = np.zeros(len(content), dtype=bool)
-        changed[switch] = True
-        before, old, old_u = costs.local_sum(switch, changed), field[switch].copy(), costs.u[switch].copy()
-        costs.switch(switch, alpha[switch], u1[chosen])
-        if costs.local_sum(switch, changed) > before:
-            costs.switch(switch, old, old_u)
-            return 0
+        return None
+    return idx[chosen], u1[chosen], clipped
+
+
+def apply_switch(costs: FieldCosts, alpha: np.ndarray, switch: np.ndarray, u_new: np.ndarray,
+                 clipped: bool) -> int:
+    """Switch cells ``switch`` to α (``best_switch``'s move) in place; returns how many switched. A move
+    cut on a clipped energy is kept only if the true energy of the cells and their pairs did not rise."""
+    if not clipped:
+        costs.switch(switch, alpha[switch], u_new)
         return len(switch)
-    costs.switch(switch, alpha[switch], u1[chosen])
+    changed = np.zeros(len(costs.content), dtype=bool)
+    changed[switch] = True
+    before, old, old_u = costs.local_sum(switch, changed), costs.field[switch].copy(), costs.u[switch].copy()
+    costs.switch(switch, alpha[switch], u_new)
+    if costs.local_sum(switch, changed) > before:
+        costs.switch(switch, old, old_u)
+        return 0
     return len(switch)
 
 
@@ -211,15 +226,62 @@ def proposals(content: Content, lib: Library, field: np.ndarray, knn: np.ndarray
     return [int(k) for k in uniq[order[:m]] if counts[np.searchsorted(uniq, k)] > 1]
 
 
+def commuting_levels(content: Content, supports: list[np.ndarray]) -> list[list[int]]:
+    """The proposals (by their ``supports``: cells where each gives an entry) in levels of moves that commute.
+
+    An expansion reads and writes the field and its costs only on its support and the support's
+    6-neighbours (its *reach*). Two proposals whose reaches are disjoint give the same result in
+    either order, and their graphs share no node or edge. Proposal j goes one level above the highest
+    earlier proposal whose reach meets its own, so running the levels in order, each level's
+    proposals together, is exactly running them one by one in list order. Returns the levels, each
+    a list of proposal indices in list order.
+    """
+    level_at = np.full(len(content), -1, dtype=np.int64)  # highest level whose reach holds the cell
+    levels: list[list[int]] = []
+    for i, cells in enumerate(supports):
+        nb = content.nb[cells]
+        reach = np.concatenate([cells, nb[nb >= 0]])
+        level = int(level_at[reach].max()) + 1 if len(reach) else 0
+        level_at[reach] = level
+        if level == len(levels):
+            levels.append([])
+        levels[level].append(i)
+    return levels
+
+
 def expansion_moves(content: Content, lib: Library, field: np.ndarray, knn: np.ndarray,
                     rounds: int = ROUNDS) -> list[float]:
-    """Run expansion rounds in place; returns the total energy after each round."""
+    """Run expansion rounds in place; returns the total energy after each round.
+
+    Each round tries the proposals in order; proposals that commute (``commuting_levels``) are cut
+    as one graph of disjoint parts — the same result as one by one, in fewer, larger cuts (a cut's
+    fixed cost, ~0.4 ms in scipy, dominates graphs of ~130 nodes). When a part's pair term had to be
+    clipped, the level's proposals are run one by one instead (each keeps or drops its own move).
+    """
     history = []
     costs = FieldCosts(content, lib, field)
     for _ in range(rounds):
         switched = 0
+        supports, values = [], []  # per proposal: the cells it gives an entry, and those entries
         for key in proposals(content, lib, field, knn):
-            switched += expand(costs, label_entries(content, lib, key))
+            entries = label_entries(content, lib, key)
+            supports.append(np.flatnonzero(entries >= 0))
+            values.append(entries[supports[-1]])
+
+        def alpha_of(level: list[int]) -> np.ndarray:
+            alpha = np.full(len(content), -1, dtype=np.int64)
+            for i in level:
+                alpha[supports[i]] = values[i]
+            return alpha
+        for level in commuting_levels(content, supports):
+            alpha = alpha_of(level)
+            move = best_switch(costs, alpha)
+            if move is None:
+                continue
+            if move[2] and len(level) > 1:
+                switched += sum(expand(costs, alpha_of([i])) for i in level)
+            else:
+                switched += apply_switch(costs, alpha, *move)
         history.append(total_energy(content, lib, field))
         if switched == 0:
             break

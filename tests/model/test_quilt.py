@@ -16,6 +16,7 @@ from core.errors import DetailizeError
 from core.grid import EMPTY, ISO_LEVEL, LabeledGrid
 from model.quilt import QuiltDetailizer
 from model.quilt import assemble as asm
+from model.quilt import graphcut, search
 from model.quilt import detailizer as quilt_detailizer
 from model.quilt import library as libm
 from model.quilt.search import continuation
@@ -166,6 +167,36 @@ def test_prepare_loads_what_detailize_needs_and_changes_nothing(two, monkeypatch
     assert np.array_equal(fresh.detailize(grid, seed=2).occupancy, want)
     with pytest.raises(DetailizeError, match="unknown style"):
         fresh.prepare(_grid(occ, styles=("nope",)))
+
+
+def test_expansions_cut_together_give_what_one_by_one_gives(two):
+    """Proposals whose reaches are disjoint are cut as one graph (``commuting_levels``): the field after a
+    round is the one that running every proposal alone, in list order, gives; and the levels do batch."""
+    occ = np.zeros((10, 6, 6), bool)
+    occ[1:9, 1:5, 1:5] = True
+    occ[3:7, 2:4, 5] = True
+    style_of = (np.arange(10) >= 5)[:, None, None].astype(np.int16) * np.ones(occ.shape, np.int16)
+    grid = _grid(occ, styles=("studded", "ribbed"), style_of=style_of)
+    content, lib, _ = two.source_field(grid, 0)
+    knn = search.nearest_entries(content, lib, np.random.default_rng(3))
+    together = knn[:, 0].copy()
+    graphcut.expansion_moves(content, lib, together, knn)
+    alone = knn[:, 0].copy()
+    keys = graphcut.proposals(content, lib, alone, knn)
+    costs = graphcut.FieldCosts(content, lib, alone)
+    switched = sum(graphcut.expand(costs, graphcut.label_entries(content, lib, k)) for k in keys)
+    assert switched > 0 and not np.array_equal(alone, knn[:, 0])
+    np.testing.assert_array_equal(together, alone)
+    supports = [np.flatnonzero(graphcut.label_entries(content, lib, k) >= 0) for k in keys]
+    levels = graphcut.commuting_levels(content, supports)
+    assert len(levels) < len(keys) and sorted(i for level in levels for i in level) == list(range(len(keys)))
+    for level in levels:  # within a level, no two reaches (support and its neighbours) meet
+        seen = np.zeros(len(content), bool)
+        for i in level:
+            nb = content.nb[supports[i]]
+            reach = np.unique(np.concatenate([supports[i], nb[nb >= 0]]))
+            assert not seen[reach].any()
+            seen[reach] = True
 
 
 def test_slabs_do_not_change_the_result(two, monkeypatch):
