@@ -79,15 +79,28 @@ def _block(fine: np.ndarray, cell: np.ndarray) -> np.ndarray:
 BATCH_CELLS = 256
 
 
-def block_labels(fine: np.ndarray, cells: np.ndarray, empty: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """6-connected components of the blocks of ``cells`` (n, 3), each block labelled on its own.
+@dataclass(frozen=True, eq=False)
+class MixedLabels:
+    """The 6-connected components of some cells' blocks (``label_blocks``), labelled only where it takes work.
 
-    Returns (n, CELL, CELL, CELL) int32 labels and (n,) int64 how many components each block has: 0 outside the mask
-    (voxels ≥ ``ISO_LEVEL``, or < it with ``empty``), else 1 + the component's index, numbered block after
-    block and, within a block, in raster order, as ``ndimage.label`` numbers one block alone. A block wholly
-    in the mask is one component; the others are stacked with an empty layer between them, so one call
-    labels them all without joining any two.
+    ``full`` (n,) bool: the block lies wholly in the mask (one component); ``mixed`` (m,) the indices of the
+    blocks partly in it; ``stacked`` (m, CELL, CELL, CELL) int32 their labels (0 outside the mask), numbered
+    on from one mixed block to the next, so mixed block i's own labels are ``first[i]`` + 1 … + count;
+    ``count`` (n,) int64 components per block (0 for a block with no voxel in the mask).
     """
+
+    full: np.ndarray
+    mixed: np.ndarray
+    stacked: np.ndarray
+    first: np.ndarray
+    count: np.ndarray
+
+
+def label_blocks(fine: np.ndarray, cells: np.ndarray, empty: bool = False) -> MixedLabels:
+    """6-connected components of the blocks of ``cells`` (n, 3), each block labelled on its own, in the mask
+    (voxels ≥ ``ISO_LEVEL``, or < it with ``empty``). Within a block, components are numbered in raster order
+    of their first voxel, as ``ndimage.label`` numbers one block alone. The mixed blocks are stacked with an
+    empty layer between them, so one call labels them all without joining any two."""
     n = len(cells)
     blocks = fine.reshape(fine.shape[0] // CELL, CELL, fine.shape[1] // CELL, CELL, fine.shape[2] // CELL, CELL)
     blocks = blocks[cells[:, 0], :, cells[:, 1], :, cells[:, 2], :]  # (n, CELL, CELL, CELL), axes as in the grid
@@ -106,12 +119,20 @@ def block_labels(fine: np.ndarray, cells: np.ndarray, empty: bool = False) -> tu
     top = stacked.reshape(len(mixed), CELL**3).max(axis=1, initial=0).astype(np.int64)
     first = np.concatenate([[0], top[:-1]])
     count[mixed] = top - first
-    offset = np.concatenate([[0], np.cumsum(count)[:-1]])
-    labels = np.zeros((n, CELL, CELL, CELL), dtype=np.int32)
-    labels[full] = (offset[full] + 1).astype(np.int32)[:, None, None, None]
-    shift = (offset[mixed] - first).astype(np.int32)[:, None, None, None]
-    labels[mixed] = np.where(stacked > 0, stacked + shift, 0)
-    return labels, count
+    return MixedLabels(full, mixed, stacked, first, count)
+
+
+def block_labels(fine: np.ndarray, cells: np.ndarray, empty: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(n, CELL, CELL, CELL) int32 labels of the blocks of ``cells`` (``label_blocks``) and (n,) int64 how
+    many components each block has: 0 outside the mask, else 1 + the component's index, numbered block
+    after block and, within a block, in raster order."""
+    lab = label_blocks(fine, cells, empty)
+    offset = np.concatenate([[0], np.cumsum(lab.count)[:-1]])
+    labels = np.zeros((len(cells), CELL, CELL, CELL), dtype=np.int32)
+    labels[lab.full] = (offset[lab.full] + 1).astype(np.int32)[:, None, None, None]
+    shift = (offset[lab.mixed] - lab.first).astype(np.int32)[:, None, None, None]
+    labels[lab.mixed] = np.where(lab.stacked > 0, lab.stacked + shift, 0)
+    return labels, lab.count
 
 
 _FACE_INDEX = [(slice(None), 0), (slice(None), -1), (slice(None), slice(None), 0), (slice(None), slice(None), -1),
@@ -144,15 +165,25 @@ class BlockParts:
         """Relabel the blocks of ``cells`` (ids into ``content``), ``BATCH_CELLS`` blocks per labelling call."""
         for a in range(0, len(cells), BATCH_CELLS):
             batch = cells[a:a + BATCH_CELLS]
-            labels, count = block_labels(fine, content.cells[batch], self.empty)
-            first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int32)  # the batch numbers on
+            lab = label_blocks(fine, content.cells[batch], self.empty)
+            faces = np.zeros((len(batch), 6, CELL, CELL), dtype=np.int32)
+            faces[lab.full] = 1
+            first = lab.first.astype(np.int32)[:, None, None]
             for d in range(6):
-                face = labels[_FACE_INDEX[d]]
-                self.faces[batch, d] = face - first[:, None, None] * (face > 0)
-            self.count[batch] = count
-            sizes = np.bincount(labels.reshape(-1), minlength=int(count.sum()) + 1)[1:]
-            for q, part in zip(batch, np.split(sizes, np.cumsum(count)[:-1])):
-                self.sizes[q] = part
+                face = lab.stacked[_FACE_INDEX[d]]
+                faces[lab.mixed, d] = np.where(face > 0, face - first, 0)
+            self.faces[batch] = faces
+            self.count[batch] = lab.count
+            mixed_sizes = np.bincount(lab.stacked.reshape(-1), minlength=int(lab.count[lab.mixed].sum()) + 1)[1:]
+            split = iter(np.split(mixed_sizes, np.cumsum(lab.count[lab.mixed])[:-1]) if len(lab.mixed) else [])
+            kind = np.where(lab.full, 1, 0)
+            kind[lab.mixed] = 2
+            for q, k in zip(batch, kind):
+                self.sizes[q] = _FULL_SIZE if k == 1 else next(split) if k == 2 else _NO_SIZE
+
+
+_FULL_SIZE = np.array([CELL**3], dtype=np.int64)  # the one component of a block wholly in the mask
+_NO_SIZE = np.zeros(0, dtype=np.int64)
 
 
 def fine_components(fine: np.ndarray, content: Cells, empty: bool = False, parts: BlockParts | None = None):
