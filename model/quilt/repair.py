@@ -199,24 +199,30 @@ def fine_components(fine: np.ndarray, content: Cells, empty: bool = False, parts
     n = len(content)
     offsets = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(parts.count, out=offsets[1:])
-    # node ids + 1 on the faces
-    faces = np.where(parts.faces > 0, parts.faces + offsets[:-1, None, None, None].astype(np.int32), 0)
     total = int(offsets[-1])
     rows, cols = [], []
     for d in range(6):
         r = content.nb[:, d]
         if empty:  # open faces: their empty voxels are outside
-            a = faces[r < 0, d]
-            hit = np.unique(a[a > 0])
-            rows.append(hit - 1)
+            q = np.flatnonzero(r < 0)
+            a = parts.faces[q, d]
+            block, i, j = np.nonzero(a)
+            hit = np.unique(offsets[q[block]] + a[block, i, j] - 1)
+            rows.append(hit)
             cols.append(np.full(len(hit), total))
         if d % 2 == 0:
             continue  # each pair of cells once, from its lower cell
         q = np.flatnonzero(r >= 0)
-        a, b = faces[q, d], faces[r[q], d ^ 1]
+        a, b = parts.faces[q, d], parts.faces[r[q], d ^ 1]
         touch = (a > 0) & (b > 0)
-        rows.append(a[touch] - 1)
-        cols.append(b[touch] - 1)
+        # two blocks of one component each: one edge when they touch anywhere (most pairs)
+        single = (parts.count[q] == 1) & (parts.count[r[q]] == 1)
+        joined = single & touch.reshape(len(q), -1).any(axis=1)
+        rows.append(offsets[q[joined]])
+        cols.append(offsets[r[q[joined]]])
+        block, i, j = np.nonzero(touch & ~single[:, None, None])  # the others voxel by voxel
+        rows.append(offsets[q[block]] + a[block, i, j] - 1)
+        cols.append(offsets[r[q[block]]] + b[block, i, j] - 1)
     size_n = total + (1 if empty else 0)
     r_ = np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, dtype=np.int64)
     c_ = np.concatenate(cols).astype(np.int64) if cols else np.zeros(0, dtype=np.int64)
