@@ -217,7 +217,7 @@ def fine_components(fine: np.ndarray, content: Cells, empty: bool = False, parts
         touch = (a > 0) & (b > 0)
         # two blocks of one component each: one edge when they touch anywhere (most pairs)
         single = (parts.count[q] == 1) & (parts.count[r[q]] == 1)
-        joined = single & touch.reshape(len(q), -1).any(axis=1)
+        joined = single & touch.any(axis=(1, 2))
         rows.append(offsets[q[joined]])
         cols.append(offsets[r[q[joined]]])
         block, i, j = np.nonzero(touch & ~single[:, None, None])  # the others voxel by voxel
