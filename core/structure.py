@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR
+from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR, pool_blocks
 
 
 def as_bool_array(volume, what: str) -> np.ndarray:
@@ -25,8 +25,7 @@ def as_bool_array(volume, what: str) -> np.ndarray:
 
 def coarse_of(output: np.ndarray, factor: int) -> np.ndarray:
     """(x, y, z) bool max-pool of an (x·f, y·f, z·f) bool grid by ``factor`` (kernel = stride)."""
-    x, y, z = (s // factor for s in output.shape)
-    return output.reshape(x, factor, y, factor, z, factor).any(axis=(1, 3, 5))
+    return pool_blocks(output, factor, np.logical_or)
 
 
 def strict_loose_iou(output, coarse, factor: int = UPSAMPLE_FACTOR) -> tuple[float, float]:

@@ -47,7 +47,7 @@ from model.upsample import fill_styles_everywhere, nearest_upsample
 from model.windows import TrunkFeatures, blockwise_forward
 from core.detailizer import requested_threads
 from core.errors import DetailizeError
-from core.grid import ISO_LEVEL, FineGrid, LabeledGrid
+from core.grid import ISO_LEVEL, FineGrid, LabeledGrid, pool_blocks
 from core.recipe import Device
 
 #: The shipped model, used when no checkpoint is given.
@@ -137,7 +137,7 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
     x, y, z = occupancy.shape
     f, n = factor, factor**3
     k = int(np.ceil(min_fill * n))
-    above = (fine > iso).reshape(x, f, y, f, z, f).sum(axis=(1, 3, 5), dtype=np.int32)
+    above = pool_blocks(fine > iso, f, np.add, dtype=np.int32)
     need = np.where(thin_cells(occupancy) if thin is None else thin, k, 1) if thin_only else np.full(occupancy.shape, k)
     for cx, cy, cz in np.argwhere(occupancy & (above < need)):
         kc = int(need[cx, cy, cz])

@@ -31,7 +31,7 @@ import numpy as np
 from scipy import ndimage
 
 from core.errors import MeshingError
-from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR, FineGrid
+from core.grid import ISO_LEVEL, UPSAMPLE_FACTOR, FineGrid, pool_blocks
 from core.recipe import AssetUse, ExportSettings, MeshResolution
 from pipeline.palette import palette_rgba
 from pipeline.simplify import close_pinches, decimate, drop_coincident_faces
@@ -281,9 +281,9 @@ def keep_thin_cells(samples: np.ndarray, field: np.ndarray, step: int, level: fl
         return 0
     m = f // step
     fine = field[:n[0] * f, :n[1] * f, :n[2] * f].reshape(n[0], f, n[1], f, n[2], f)
-    has = fine.max(axis=(1, 3, 5)) >= iso
+    has = pool_blocks(field, f) >= iso
     view = samples[:n[0] * m, :n[1] * m, :n[2] * m].reshape(n[0], m, n[1], m, n[2], m)
-    thin = has & (view.max(axis=(1, 3, 5)) < level)
+    thin = has & (pool_blocks(samples[:n[0] * m, :n[1] * m, :n[2] * m], m) < level)
     for i, j, k in np.argwhere(thin):
         block = fine[i, :, j, :, k, :]  # (f, f, f)
         boxes = block.reshape(m, step, m, step, m, step).max(axis=(1, 3, 5)) >= iso
