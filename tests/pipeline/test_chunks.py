@@ -40,18 +40,37 @@ def local_detailizer(grid: LabeledGrid) -> FineGrid:
 @pytest.fixture
 def small_blocks(monkeypatch):
     monkeypatch.setattr(chunks, "WHOLE_MAX_CELLS", 16)
-    monkeypatch.setattr(chunks, "CHUNK_CELLS", 12)
+    monkeypatch.setattr(chunks, "CHUNK_MAX_CELLS", 12 * 4 * 3)  # 12 columns of bar_grid's 4 × 3
+
+
+def _rod(length: int) -> np.ndarray:
+    occ = np.zeros((length, 4, 3), bool)
+    occ[:, 1, 1] = True
+    return occ
 
 
 def test_plan_covers_the_columns_once_with_a_halo(small_blocks):
-    assert plan_chunks(16) == [Chunk(0, 16, 0, 16)]
-    plan = plan_chunks(40)
-    # ⌈40 / 12⌉ = 4 blocks (an even count), as equal as can be
+    assert plan_chunks(_rod(16)) == [Chunk(0, 16, 0, 16)]
+    plan = plan_chunks(_rod(40))
+    # ⌈40 / 12⌉ = 4 blocks (an even count) of equal occupied cells
     assert [(c.start, c.stop) for c in plan] == [(0, 10), (10, 20), (20, 30), (30, 40)]
     assert [(c.lo, c.hi) for c in plan] == [(0, 12), (8, 22), (18, 32), (28, 40)]
-    assert chunks.detail_shape((40, 4, 3)) == (14, 4, 3)
-    # ⌈25 / 12⌉ = 3 blocks, made 4 so that two processes get halves of the same size; 25 = 7 + 6 + 6 + 6
-    assert [(c.start, c.stop) for c in plan_chunks(25)] == [(0, 7), (7, 13), (13, 19), (19, 25)]
+    assert chunks.detail_shape((40, 4, 3)) == (16, 4, 3)  # the widest block the plan may cut (12) + context
+    assert chunks.detail_shape((16, 4, 3)) == (16, 4, 3)
+    # ⌈25 / 12⌉ = 3 blocks, made 4 so that two processes get halves of the same work; 25 = 7 + 6 + 6 + 6
+    assert [(c.start, c.stop) for c in plan_chunks(_rod(25))] == [(0, 7), (7, 13), (13, 19), (19, 25)]
+
+
+def test_plan_cuts_blocks_of_equal_occupied_cells_within_the_width(small_blocks, monkeypatch):
+    occ = _rod(40)
+    occ[:10, 1, :] = True  # the first quarter holds 30 of the 60 occupied cells
+    monkeypatch.setattr(chunks, "CHUNK_MAX_CELLS", 30 * 4 * 3)  # blocks up to 30 columns: two blocks
+    assert [(c.start, c.stop) for c in plan_chunks(occ)] == [(0, 10), (10, 40)]
+    monkeypatch.setattr(chunks, "CHUNK_MAX_CELLS", 24 * 4 * 3)  # equal shares would make one 30 wide
+    assert [(c.start, c.stop) for c in plan_chunks(occ)] == [(0, 20), (20, 40)]
+    assert plan_chunks(np.zeros((40, 4, 3), bool))[0] == Chunk(0, 20, 0, 22)  # nothing to share
+    # a grid just over the whole-block length still goes to two processes
+    assert [(c.start, c.stop) for c in plan_chunks(_rod(17))] == [(0, 9), (9, 17)]
 
 
 @pytest.mark.parametrize("step", [1, 2])
@@ -91,7 +110,7 @@ def test_decimated_and_smoothed_blocks_stay_closed_within_the_budget(small_block
 
 def test_budget_follows_the_coarse_surface(small_blocks):
     grid = bar_grid()
-    plan = plan_chunks(grid.shape[0])
+    plan = plan_chunks(grid.occupancy)
     shares = budget_shares(grid.occupancy, plan, 10_000)
     assert sum(shares) <= 10_000
     surface = [chunks.coarse_surface_faces(grid.occupancy[c.start:c.stop]).sum() for c in plan]
@@ -261,7 +280,9 @@ assets:
     assert proc.returncode == 0, proc.stderr[-3000:]
     peak_mb = json.loads(proc.stderr.strip().splitlines()[-1])["peak_mb"]
     entry = json.loads((out / "manifest.json").read_text())["assets"][0]
-    assert entry["status"] == "built" and entry["chunks"] == 12
+    # 364 columns of 21 × 6 cells: blocks of at most CHUNK_MAX_CELLS // 126 = 65 columns, an even count
+    assert entry["status"] == "built" and entry["chunks"] == 6
     assert entry["coarse_grid"]["shape"][0] > 256  # longer than the old grid.max_cells
     assert entry["mesh"]["triangles"] <= 60_000 and entry["structure"]["strict_iou"] > 0.9
+    print(f"peak RSS {peak_mb:.0f} MB")
     assert peak_mb < 2000, f"peak RSS {peak_mb:.0f} MB"
