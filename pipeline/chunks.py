@@ -6,7 +6,8 @@ block: the detailizer sees it whole (from ``MESH_SPLIT_MIN_CELLS`` columns on, t
 two pieces of its one field, which two processes can mesh at once; a detailizer that can give its field
 column range by column range — ``column_detailizer``, the learned model — also detailizes the two pieces
 apart, after the work they share). A longer one is cut into as few blocks as memory allows (each
-block's box at most ``CHUNK_MAX_CELLS`` coarse cells), an even number, cut where they hold equal
+block at most ``CHUNK_CELLS`` columns, or more while its box holds at most ``CHUNK_MAX_CELLS`` coarse
+cells), an even number, cut where they hold equal
 shares of the occupied cells (``plan_chunks``).
 Each block is detailized on its columns plus ``HALO_CELLS`` columns of context on either side (the
 detailizer sees its neighbours' shapes there; only the block's own columns are kept), then meshed
@@ -43,8 +44,11 @@ if TYPE_CHECKING:
 
 #: Grids of at most this many coarse columns along x are detailized and meshed as one block.
 WHOLE_MAX_CELLS = 64
-#: Most coarse cells in the box of a block's own columns (columns × Y × Z) when a grid is longer: bounds a
-#: block's fine field at 32 columns of a 16 × 16 cross-section (~33 M fine voxels); a word's 17 × 6 takes 80.
+#: Own coarse columns a block of a longer grid may always have (as many as before ``CHUNK_MAX_CELLS``)...
+CHUNK_CELLS = 32
+#: ... and more while the box of its own columns (columns × Y × Z) holds at most this many coarse cells: a
+#: thin cross-section gets fewer, longer blocks (a word's 17 × 6: 80 columns), a fine field of at most ~33 M
+#: voxels, as 32 columns of a 16 × 16 cross-section.
 CHUNK_MAX_CELLS = 32 * 16 * 16
 #: Coarse columns of context the detailizer sees on either side of a block (cut away after).
 HALO_CELLS = 2
@@ -85,8 +89,9 @@ class DetailedMesh:
 
 
 def block_columns(coarse_shape: tuple[int, int, int]) -> int:
-    """Most own columns of a block of a grid longer than ``WHOLE_MAX_CELLS`` (``CHUNK_MAX_CELLS`` / (Y·Z))."""
-    return max(1, CHUNK_MAX_CELLS // max(1, int(coarse_shape[1]) * int(coarse_shape[2])))
+    """Most own columns of a block of a grid longer than ``WHOLE_MAX_CELLS``: ``CHUNK_CELLS``, or
+    ``CHUNK_MAX_CELLS`` / (Y·Z) where that is more."""
+    return max(CHUNK_CELLS, CHUNK_MAX_CELLS // max(1, int(coarse_shape[1]) * int(coarse_shape[2])))
 
 
 def plan_chunks(occupancy: np.ndarray) -> list[Chunk]:

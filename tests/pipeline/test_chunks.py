@@ -40,6 +40,7 @@ def local_detailizer(grid: LabeledGrid) -> FineGrid:
 @pytest.fixture
 def small_blocks(monkeypatch):
     monkeypatch.setattr(chunks, "WHOLE_MAX_CELLS", 16)
+    monkeypatch.setattr(chunks, "CHUNK_CELLS", 1)
     monkeypatch.setattr(chunks, "CHUNK_MAX_CELLS", 12 * 4 * 3)  # 12 columns of bar_grid's 4 × 3
 
 
@@ -69,6 +70,10 @@ def test_plan_cuts_blocks_of_equal_occupied_cells_within_the_width(small_blocks,
     monkeypatch.setattr(chunks, "CHUNK_MAX_CELLS", 24 * 4 * 3)  # equal shares would make one 30 wide
     assert [(c.start, c.stop) for c in plan_chunks(occ)] == [(0, 20), (20, 40)]
     assert plan_chunks(np.zeros((40, 4, 3), bool))[0] == Chunk(0, 20, 0, 22)  # nothing to share
+    monkeypatch.setattr(chunks, "CHUNK_MAX_CELLS", 12)  # a fat cross-section keeps CHUNK_CELLS columns a block
+    monkeypatch.setattr(chunks, "CHUNK_CELLS", 15)
+    assert [(c.start, c.stop) for c in plan_chunks(occ)] == [(0, 5), (5, 10), (10, 25), (25, 40)]
+    assert chunks.detail_shape((40, 4, 3)) == (19, 4, 3)
     # a grid just over the whole-block length still goes to two processes
     assert [(c.start, c.stop) for c in plan_chunks(_rod(17))] == [(0, 9), (9, 17)]
 
