@@ -109,11 +109,16 @@ class AugmentConfig:
         rotate: random k·90° about +Y.
         combine_prob: probability of combining two different exemplars.
         offset_range: range of u, the second shape's x/z shift as a fraction of the first's extent.
-        style_offset: the sub-cell offset (3 ints in [0, factor), fine voxels) of every style
-            sample (``style_sample``: reconstruction steps, D's "real", the monitor's
-            exemplars); None = a random one per sample (the reference). A fixed offset makes
-            every reconstruction of an exemplar the same input and target: the overfit
-            diagnostic that separates fitting from inferring the offset from the coarse grid.
+        style_offset: where every style sample (``style_sample``: reconstruction steps, D's
+            "real", the monitor's exemplars) sits relative to the coarse cells. None = a random
+            sub-cell offset per sample (this project's first choice, not the reference's);
+            ``CENTRE`` = the reference's placement: the exemplar centre-padded in an R³ grid
+            (offset ((R − n) // 2) mod f per axis, n its extent in fine voxels), one fixed
+            offset per exemplar; 3 ints in [0, factor) = that one offset for every exemplar
+            (the overfit diagnostic). With a fixed placement, each reconstruction of an
+            exemplar is the same input and target, so its fine detail is a function of its
+            coarse grid that a local network can fit; with a random one the same coarse grid
+            has targets shifted by up to f − 1 voxels, whose mean is a blur.
     """
 
     resolution: int = 256
@@ -123,7 +128,7 @@ class AugmentConfig:
     rotate: bool = True
     combine_prob: float = 0.5
     offset_range: tuple[float, float] = (0.3, 0.7)
-    style_offset: tuple[int, int, int] | None = None
+    style_offset: tuple[int, int, int] | str | None = None
 
     @property
     def max_side(self) -> int:
@@ -323,6 +328,29 @@ def place_in_crop(labels: np.ndarray, rng: np.random.Generator, factor: int, mar
     return place_at(labels, rng.integers(0, factor, size=3), factor, margin, min_cells)
 
 
+#: ``AugmentConfig.style_offset`` value for the reference's placement of a style shape (centre-padded in R³).
+CENTRE = "centre"
+
+
+def parse_style_offset(value: object) -> tuple[int, int, int] | str | None:
+    """A ``style_offset`` as read from JSON or a checkpoint: None, ``CENTRE``, or a list of 3 ints → tuple."""
+    if value is None or value == CENTRE:
+        return value  # type: ignore[return-value]
+    if isinstance(value, str):
+        raise DetailizeError(f"style_offset {value!r} is not known", field="style_offset",
+                             hint=f'use "{CENTRE}", 3 sub-cell offsets such as [5, 6, 5], or null (random)')
+    return tuple(int(o) for o in value)  # type: ignore[union-attr]
+
+
+def centre_offset(extent: Sequence[int], resolution: int, factor: int) -> tuple[int, int, int]:
+    """The sub-cell offset of a shape of ``extent`` fine voxels centre-padded in a ``resolution``³ grid.
+
+    The reference pads every style shape to R³ around its centre (start (R − n) // 2 per axis);
+    relative to the ×f coarse cells that start is ((R − n) // 2) mod f. Extents above R use 0.
+    """
+    return tuple(max(0, (resolution - int(n)) // 2) % factor for n in extent)  # type: ignore[return-value]
+
+
 def place_at(labels: np.ndarray, offset: Sequence[int], factor: int, margin: int = 1,
              min_cells: int = 1) -> np.ndarray:
     """``place_in_crop`` at a given sub-cell ``offset`` (3 ints in [0, factor)) instead of a random one."""
@@ -450,9 +478,12 @@ def style_sample(exemplars: Sequence[Exemplar], style: int, cfg: ModelConfig, au
         lab = crop_to_bbox(resample_labels(lab, np.maximum(1, np.round(np.asarray(lab.shape) * base)), aug.threshold))
     if aug.style_offset is None:
         fine = place_in_crop(lab, rng, cfg.factor, min_cells=min_coarse_cells(cfg))
-    elif len(aug.style_offset) != 3 or not all(0 <= int(o) < cfg.factor for o in aug.style_offset):
+    elif aug.style_offset == CENTRE:
+        fine = place_at(lab, centre_offset(lab.shape, aug.resolution, cfg.factor), cfg.factor,
+                        min_cells=min_coarse_cells(cfg))
+    elif isinstance(aug.style_offset, str) or len(aug.style_offset) != 3 or not all(0 <= int(o) < cfg.factor for o in aug.style_offset):
         raise DetailizeError(f"style_offset {aug.style_offset!r} must be 3 sub-cell offsets in [0, {cfg.factor})",
-                             field="style_offset", hint="e.g. [5, 6, 5], or null for random offsets")
+                             field="style_offset", hint=f'e.g. [5, 6, 5], "{CENTRE}" (the reference\'s centre padding), or null for random offsets')
     else:
         fine = place_at(lab, aug.style_offset, cfg.factor, min_cells=min_coarse_cells(cfg))
     return _finish(fine, (int(style),) * cfg.n_parts, (ex.name,), cfg)

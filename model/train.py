@@ -84,7 +84,8 @@ import torch
 from model.ablations import ABLATIONS
 from model.checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from model.config import ModelConfig
-from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, rng_for, style_sample
+from model.data import (CENTRE, AugmentConfig, Exemplar, Sample, augmented_sample, parse_style_offset, rng_for,
+                        style_sample)
 from model.distill import QuiltTeacher, distill_sample, is_distilled
 from model.infer import cpu_threads, resolve_device
 from model.losses import discriminator_loss_levels, generator_adversarial_loss, reconstruction_loss
@@ -127,9 +128,11 @@ class TrainConfig:
             ``lr`` along a half cosine over ``warmup_iters`` (``lr`` afterwards).
         windows_per_step: fine-level windows per reconstruction step, sharing one trunk
             forward (``windows.windows_forward``); the loss is their mean.
-        style_offset: every exemplar's sub-cell offset in its reconstruction steps (3 ints in
-            [0, 16), ``AugmentConfig.style_offset``); None = random per step (the reference). The
-            monitor's exemplars then sit at the same offset (an overfit diagnostic).
+        style_offset: where every exemplar sits relative to the coarse cells in its reconstruction
+            steps, D's "real" and the monitor (``AugmentConfig.style_offset``): None = a random
+            sub-cell offset per step (this project's first choice), ``"centre"`` = the
+            reference's centre padding (one offset per exemplar), or 3 ints in [0, 16) (one
+            offset for all: the overfit diagnostic).
         distill_frac: the fraction of reconstruction steps whose target is ``quilt``'s output on
             an augmented training content instead of an exemplar as itself
             (``model.distill``); 0 = none (the reference).
@@ -167,11 +170,10 @@ class TrainConfig:
     windows_per_step: int = 1
     monitor_every: int = 0
     distill_frac: float = 0.0
-    style_offset: tuple[int, int, int] | None = None
+    style_offset: tuple[int, int, int] | str | None = None
 
     def __post_init__(self) -> None:
-        if self.style_offset is not None:  # JSON gives a list
-            object.__setattr__(self, "style_offset", tuple(int(o) for o in self.style_offset))
+        object.__setattr__(self, "style_offset", parse_style_offset(self.style_offset))  # JSON gives a list
         if isinstance(self.device, str) and not isinstance(self.device, Device) and self.device in set(Device):
             object.__setattr__(self, "device", Device(self.device))
         checks = (
@@ -190,8 +192,9 @@ class TrainConfig:
             (1 <= self.windows_per_step <= 16, "windows_per_step", "use 1 to 16"),
             (self.monitor_every >= 0, "monitor_every", "use 0 (never) or more"),
             (0.0 <= self.distill_frac <= 1.0, "distill_frac", "a fraction: 0 (no distillation) to 1"),
-            (self.style_offset is None or (len(self.style_offset) == 3 and min(self.style_offset) >= 0),
-             "style_offset", "3 sub-cell offsets in [0, 16), or None (random)"),
+            (self.style_offset is None or self.style_offset == CENTRE
+             or (len(self.style_offset) == 3 and min(self.style_offset) >= 0),
+             "style_offset", f'"{CENTRE}", 3 sub-cell offsets in [0, 16), or None (random)'),
         )
         for ok, name, hint in checks:
             if not ok:

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from model.checkpoint import load_checkpoint
-from model.data import AugmentConfig, exemplars_from_set, style_sample
+from model.data import AugmentConfig, exemplars_from_set, parse_style_offset, style_sample
 from model.monitor import MONITOR_SEED
 from model.networks import Generator
 from stylesets.registry import resolve_style_set
@@ -42,7 +42,7 @@ def main() -> None:
     ex = [by_name[n] for n in ck.style_names]
     tc = ck.training["train_config"]
     offset = tc.get("style_offset")
-    aug = AugmentConfig(resolution=int(tc["resolution"]), style_offset=tuple(offset) if offset else None)
+    aug = AugmentConfig(resolution=int(tc["resolution"]), style_offset=parse_style_offset(offset))
     s = style_sample(ex, 0, cfg, aug, MONITOR_SEED, 0)  # the monitor's input for exemplar 0
     gen = Generator(cfg)
     gen.load_state_dict(ck.generator)

@@ -9,10 +9,12 @@ import pytest
 
 from model.config import ModelConfig, TargetSmoothing
 from model.data import (
+    CENTRE,
     AugmentConfig,
     Exemplar,
     augment_exemplar,
     augmented_sample,
+    centre_offset,
     combine,
     min_coarse_cells,
     place_in_crop,
@@ -219,6 +221,26 @@ def test_style_offset_fixes_the_style_sample():
     assert TrainConfig(out_dir="unused", steps=0).augment().style_offset is None
     with pytest.raises(DetailizeError, match="style_offset"):
         TrainConfig(out_dir="unused", steps=0, style_offset=[1, 2])
+
+
+def test_centre_places_each_exemplar_as_the_reference_pads_it():
+    from model.train import TrainConfig
+
+    assert centre_offset((256, 100, 37), 256, 16) == (0, 78 % 16, 109 % 16)  # start (R − n) // 2, mod f
+    exs, cfg = _set(), _cfg()
+    centred = dataclasses.replace(AUG, style_offset=CENTRE)
+    for k in range(len(exs)):
+        drawn = [style_sample(exs, k, cfg, centred, seed=s, step=t).fine_labels for s, t in ((0, 0), (3, 5), (9, 77))]
+        assert all(np.array_equal(d, drawn[0]) for d in drawn[1:])  # one placement per exemplar, whatever the draw
+        occ = np.argwhere(drawn[0] != EMPTY)
+        extent = occ.max(0) - occ.min(0) + 1
+        assert tuple(occ.min(0) % cfg.factor) == centre_offset(extent, AUG.resolution, cfg.factor)
+    t = TrainConfig(out_dir="unused", steps=0, resolution=64, style_offset="centre")
+    assert t.augment().style_offset == CENTRE
+    with pytest.raises(DetailizeError, match="style_offset"):
+        TrainConfig(out_dir="unused", steps=0, style_offset="middle")
+    with pytest.raises(DetailizeError, match="style_offset"):
+        style_sample(exs, 0, cfg, dataclasses.replace(AUG, style_offset="middle"), seed=0, step=0)
 
 
 def test_progressive_smoothing_keeps_thin_parts():

@@ -257,3 +257,13 @@ def test_warmup_low_is_warmup_thin_at_a_lower_warmup_peak(tmp_path):
     trainer = Trainer(EXS, cfg_l, t_l)
     assert trainer.learning_rate(0) == pytest.approx(3e-4)
     assert trainer.learning_rate(WARMUP_ITERS) == pytest.approx(t_l.lr)  # the half cosine ends at the base rate
+
+
+def test_warmup_centred_is_warmup_low_with_the_reference_placement(tmp_path):
+    from model.recipes import recipe_configs
+
+    cfg_l, t_l = recipe_configs("warmup_low", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_low"))
+    cfg_c, t_c = recipe_configs("warmup_centred", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_centred"))
+    assert cfg_c == cfg_l and t_l.style_offset is None and t_c.style_offset == "centre"
+    assert dataclasses.replace(t_c, style_offset=None, recipe=t_l.recipe) == t_l  # nothing else differs
+    assert t_c.augment().style_offset == "centre"
