@@ -267,3 +267,27 @@ def test_warmup_centred_is_warmup_low_with_the_reference_placement(tmp_path):
     assert cfg_c == cfg_l and t_l.style_offset is None and t_c.style_offset == "centre"
     assert dataclasses.replace(t_c, style_offset=None, recipe=t_l.recipe) == t_l  # nothing else differs
     assert t_c.augment().style_offset == "centre"
+
+
+def test_warmup_centred_r4_trains_like_warmup_centred_until_its_adversarial_phase(tmp_path):
+    from model.recipes import R4_UNTIL, WARMUP_ITERS, recipe_configs
+
+    cfg_c, t_c = recipe_configs("warmup_centred", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_centred"))
+    cfg_r, t_r = recipe_configs("warmup_centred_r4", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_centred_r4"))
+    assert cfg_r == cfg_c  # the same model: a warmup_centred state continues under it
+    assert t_c.recon_early_iters == 0 and t_r.recon_early_iters == R4_UNTIL > WARMUP_ITERS == t_r.warmup_iters
+    assert t_r.recon_steps_early == 4
+    # nothing else differs (the test's base config has 2 early reconstruction steps; the default is 4)
+    assert dataclasses.replace(t_r, recon_early_iters=0, recon_steps_early=t_c.recon_steps_early,
+                               recipe=t_c.recipe) == t_c
+    # count the reconstruction steps of one iteration in the warm-up and one after it
+    counts = {}
+    for it in (WARMUP_ITERS - 1, WARMUP_ITERS):
+        trainer = Trainer(EXS, cfg_r, t_r)
+        calls = []
+        trainer.reconstruction_step = lambda i, r, calls=calls: (calls.append(r), ({"recon": 0.0}, None))[1]
+        trainer.adversarial_steps = lambda i, real: {}
+        trainer.step = it
+        trainer.iteration()
+        counts[it] = len(calls)
+    assert counts == {WARMUP_ITERS - 1: 1, WARMUP_ITERS: 4}
