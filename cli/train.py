@@ -55,10 +55,11 @@ def train_command(
                                   help="Training recipe (model.recipes): reference (the shipped model's), warmup "
                                        "(issue 15's), warmup_thin (warmup; the inference fill projection on "
                                        "one-cell-thick cells only), warmup_low (warmup_thin at a warm-up peak rate "
-                                       "of 3e-4, not 1e-3), warmup_centred (warmup_low, each exemplar at the reference's "
-                                       "centred placement, not a random offset), warmup_centred_r4 (warmup_centred, "
-                                       "4 reconstruction steps per adversarial step until iteration 5000) or "
-                                       "distill (warmup + quilt's outputs as half the targets); recorded in the checkpoint, a resume must name the same."),
+                                       "of 3e-4, not 1e-3), warmup_centred (warmup_low, each exemplar at the "
+                                       "reference's centred placement, not a random offset), warmup_centred_r4 "
+                                       "(warmup_centred, 4 reconstruction steps per adversarial step until iteration "
+                                       "5000) or distill (warmup + quilt's outputs as half the targets); recorded in "
+                                       "the checkpoint, a resume must name the same."),
     seed: int = typer.Option(0, "--seed"),
     device: str = typer.Option(Device.AUTO.value, "--device", help="auto, cpu, cuda or cuda:N."),
     checkpoint_every: int = typer.Option(100, "--checkpoint-every", help="Iterations between last.pt saves."),

@@ -481,9 +481,11 @@ def style_sample(exemplars: Sequence[Exemplar], style: int, cfg: ModelConfig, au
     elif aug.style_offset == CENTRE:
         fine = place_at(lab, centre_offset(lab.shape, aug.resolution, cfg.factor), cfg.factor,
                         min_cells=min_coarse_cells(cfg))
-    elif isinstance(aug.style_offset, str) or len(aug.style_offset) != 3 or not all(0 <= int(o) < cfg.factor for o in aug.style_offset):
+    elif (isinstance(aug.style_offset, str) or len(aug.style_offset) != 3
+          or not all(0 <= int(o) < cfg.factor for o in aug.style_offset)):
         raise DetailizeError(f"style_offset {aug.style_offset!r} must be 3 sub-cell offsets in [0, {cfg.factor})",
-                             field="style_offset", hint=f'e.g. [5, 6, 5], "{CENTRE}" (the reference\'s centre padding), or null for random offsets')
+                             field="style_offset",
+                             hint=f'e.g. [5, 6, 5], "{CENTRE}" (the reference\'s centre padding), or null for random')
     else:
         fine = place_at(lab, aug.style_offset, cfg.factor, min_cells=min_coarse_cells(cfg))
     return _finish(fine, (int(style),) * cfg.n_parts, (ex.name,), cfg)

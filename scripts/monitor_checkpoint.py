@@ -9,7 +9,8 @@ generator on the run's own monitor inputs (the run's resolution, ``MONITOR_SEED`
 figure. The exemplars are the set's exemplars the checkpoint was trained on, by name (all of
 the set, or the one or few of an overfit run of ``scripts/ab_recipe.py --exemplars``).
 ``--style-offset centre`` measures at the reference's placement whatever the run trained with
-(so a random-offset run compares with a ``"centre"`` one on the same inputs). ``--per-exemplar`` adds ``self_iou_raw_by_exemplar`` / ``self_iou_by_exemplar`` (name → IOU
+(so a random-offset run compares with a ``"centre"`` one on the same inputs). ``--per-exemplar``
+adds ``self_iou_raw_by_exemplar`` / ``self_iou_by_exemplar`` (name → IOU
 without / with the config's projection). Cost at R = 256 on 2 cores: about a minute (eight
 quilt detailizations once).
 """
