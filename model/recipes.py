@@ -87,7 +87,7 @@ def _warmup_low(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfi
 
 def _warmup_centred(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     m, t = _warmup_low(m, t)
-    return m, dataclasses.replace(t, style_offset="centre")  # model.data.CENTRE (not imported: CLI start-up stays light)
+    return m, dataclasses.replace(t, style_offset="centre")  # model.data.CENTRE; not imported: light start-up
 
 
 def _warmup_centred_r4(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
