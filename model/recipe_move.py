@@ -1,7 +1,9 @@
 """Move a training state between two recipes that train the same model (only inference settings differ).
 
 ``move_state_recipe`` backs ``scripts/rerecipe_state.py``: e.g. a ``warmup`` state continues as
-``warmup_thin``, whose only difference is the inference projection (``model/recipes.py``).
+``warmup_thin``, whose only difference is the inference projection (``model/recipes.py``), and a
+``warmup_centred_r4`` state at step 4000 as ``warmup_centred_r4_long``, whose 4:1 phase lasts
+longer but which did the same first 4000 iterations.
 """
 
 from __future__ import annotations
@@ -20,7 +22,10 @@ def move_state_recipe(ck: Checkpoint, name: str) -> Checkpoint:
     Both recipes are applied to the lean layout of the state's size and a default
     ``TrainConfig``: they must differ only in ``INFERENCE_ONLY_FIELDS``; the state keeps its
     weights, optimizers, RNG and step and takes the new recipe's values of those fields and
-    its name. Raises ValueError (unknown recipe, or the recipes train differently).
+    its name. The training settings may also differ in how many reconstruction steps an
+    iteration takes (``recon_steps_early``, ``recon_early_iters``) where that changes none of
+    the iterations the state has done. Raises ValueError (unknown recipe, or the recipes
+    train differently).
     """
     old = ck.training.get("recipe", "reference")
     if name not in RECIPES or old not in RECIPES:
@@ -30,10 +35,31 @@ def move_state_recipe(ck: Checkpoint, name: str) -> Checkpoint:
     m_old, t_old = recipe_configs(old, base, t0)
     m_new, t_new = recipe_configs(name, base, t0)
     differ = [f.name for f in dataclasses.fields(m_old) if getattr(m_old, f.name) != getattr(m_new, f.name)]
-    if set(differ) - set(INFERENCE_ONLY_FIELDS) or t_old != t_new:
+    step = int(ck.training.get("step", 0))
+    if set(differ) - set(INFERENCE_ONLY_FIELDS) or not _same_history(t_old, t_new, step):
         raise ValueError(f"recipes {old!r} and {name!r} train differently ({differ or 'TrainConfig'})")
     config = dataclasses.replace(ck.config, **{f: getattr(m_new, f) for f in INFERENCE_ONLY_FIELDS})
-    training = {**ck.training, "recipe": name, "recipe_moved_from": {"recipe": old, "step": ck.training.get("step")}}
+    training = {**ck.training, "recipe": name, "recipe_moved_from": {"recipe": old, "step": step}}
     if isinstance(training.get("train_config"), dict):
-        training["train_config"] = {**training["train_config"], "recipe": name}
+        training["train_config"] = {**training["train_config"], "recipe": name,
+                                    **{f: getattr(t_new, f) for f in _RECON_COUNT_FIELDS}}
     return dataclasses.replace(ck, config=config, training=training)
+
+
+#: TrainConfig fields that only set how many reconstruction steps each iteration takes.
+_RECON_COUNT_FIELDS = ("recon_steps_early", "recon_early_iters")
+
+
+def _recon_steps(t: TrainConfig, it: int) -> int:
+    """Reconstruction steps of iteration ``it`` (``Trainer.iteration``'s rule)."""
+    if it < t.warmup_iters:
+        return 1
+    return max(1, t.recon_steps_early) if it < t.recon_early_iters else 1
+
+
+def _same_history(a: TrainConfig, b: TrainConfig, step: int) -> bool:
+    """Whether the first ``step`` iterations are the same under both settings."""
+    rest = {f: getattr(a, f) for f in _RECON_COUNT_FIELDS}
+    if dataclasses.replace(b, **rest) != a:
+        return False
+    return all(_recon_steps(a, it) == _recon_steps(b, it) for it in range(step))

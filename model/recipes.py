@@ -62,6 +62,10 @@ if TYPE_CHECKING:  # the names are read by the CLI at start-up: keep this module
 WARMUP_ITERS = 3000
 #: Iteration until which ``warmup_centred_r4`` takes 4 reconstruction steps per adversarial step.
 R4_UNTIL = 5000
+#: Iteration until which the ``_long`` recipes take 4 reconstruction steps per adversarial step.
+R4_LONG_UNTIL = 20000
+#: Reconstruction-only iterations of ``warmup_centred_long``.
+WARMUP_LONG_ITERS = 8000
 #: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
 DISTILL_FRAC = 0.5
 
@@ -95,6 +99,16 @@ def _warmup_centred_r4(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, Tra
     return m, dataclasses.replace(t, recon_steps_early=4, recon_early_iters=R4_UNTIL)
 
 
+def _warmup_centred_r4_long(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_r4(m, t)
+    return m, dataclasses.replace(t, recon_early_iters=R4_LONG_UNTIL)
+
+
+def _warmup_centred_long(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_r4_long(m, t)
+    return m, dataclasses.replace(t, warmup_iters=WARMUP_LONG_ITERS)
+
+
 #: ModelConfig fields read only at inference (``model/infer.py``'s projection): two recipes that differ in
 #: nothing else train the same model, so a training state may move from one to the other.
 INFERENCE_ONLY_FIELDS = ("min_cell_fill", "min_fill_thin_only")
@@ -115,6 +129,10 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
                        _warmup_centred),
     "warmup_centred_r4": ("warmup_centred, 4 reconstruction steps per adversarial step until iteration 5000",
                           _warmup_centred_r4),
+    "warmup_centred_r4_long": ("warmup_centred_r4 with the 4:1 phase until iteration 20000",
+                               _warmup_centred_r4_long),
+    "warmup_centred_long": ("warmup_centred_r4_long with an 8000-iteration warm-up (its cosine decay stretched)",
+                            _warmup_centred_long),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

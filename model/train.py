@@ -90,6 +90,7 @@ from model.distill import QuiltTeacher, distill_sample, is_distilled
 from model.infer import cpu_threads, resolve_device
 from model.losses import discriminator_loss_levels, generator_adversarial_loss, reconstruction_loss
 from model.monitor import Monitor
+from model.prefetch import ContentPrefetcher
 from model.networks import Generator, build_discriminators
 from model.previews import preview_samples, write_preview
 from model.recipes import RECIPES
@@ -136,6 +137,9 @@ class TrainConfig:
         distill_frac: the fraction of reconstruction steps whose target is ``quilt``'s output on
             an augmented training content instead of an exemplar as itself
             (``model.distill``); 0 = none (the reference).
+        data_workers: worker processes that make the adversarial contents of the next
+            iterations ahead (``model.prefetch``); 0 = in the training process. The samples
+            are the same either way, so it changes the time per iteration, not the run.
         monitor_every: iterations between the quick figures of ``model.monitor``
             (self-reconstruction IOU, style overlap, coarse-cell fill) written to the log
             row of that step; 0 = never.
@@ -171,6 +175,7 @@ class TrainConfig:
     monitor_every: int = 0
     distill_frac: float = 0.0
     style_offset: tuple[int, int, int] | str | None = None
+    data_workers: int = 0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "style_offset", parse_style_offset(self.style_offset))  # JSON gives a list
@@ -191,6 +196,7 @@ class TrainConfig:
             (self.warmup_lr > 0, "warmup_lr", "e.g. 1e-3"),
             (1 <= self.windows_per_step <= 16, "windows_per_step", "use 1 to 16"),
             (self.monitor_every >= 0, "monitor_every", "use 0 (never) or more"),
+            (0 <= self.data_workers <= 64, "data_workers", "use 0 (in-process) to the machine's cores"),
             (0.0 <= self.distill_frac <= 1.0, "distill_frac", "a fraction: 0 (no distillation) to 1"),
             (self.style_offset is None or self.style_offset == CENTRE
              or (len(self.style_offset) == 3 and min(self.style_offset) >= 0),
@@ -253,6 +259,8 @@ class Trainer:
         check_window(cfg, self.whole_levels, tcfg.window_cells)
         self.step = 0
         self.wall_s = 0.0
+        self._fixed_styles: dict[int, Sample] = {}  # style → its sample, when the placement is fixed
+        self.prefetch: ContentPrefetcher | None = None  # set by ``train`` when ``data_workers`` > 0
 
     # ------------------------------------------------------------------ tensors
 
@@ -303,7 +311,31 @@ class Trainer:
         if self.teacher is not None and is_distilled(t.seed, it, r, t.distill_frac):
             return distill_sample(self.teacher, self.cfg, self.aug, t.seed, it, r), True
         style = int(rng_for(t.seed, it, 100 + r).integers(self.cfg.n_styles))
-        return style_sample(self.exemplars, style, self.cfg, self.aug, t.seed, it * 8 + r), False
+        return self.style_sample(style, it * 8 + r), False
+
+    def style_sample(self, style: int, draw: int) -> Sample:
+        """``model.data.style_sample`` of ``style`` for draw index ``draw`` (it·8 + r).
+
+        With a fixed placement (``style_offset`` set: centred or one offset) the sample does
+        not depend on the draw: it is made once per style and kept with its whole-crop
+        targets of every supervised level, so a window's target is a cut of those instead of
+        a new smoothing (the same values: ``Sample.target``). That saves ~0.5 s of numpy per
+        reconstruction step at R = 256 (4 windows; Intel Xeon) for ~30 MiB per style.
+        """
+        if self.aug.style_offset is None:
+            return style_sample(self.exemplars, style, self.cfg, self.aug, self.tcfg.seed, draw)
+        if style not in self._fixed_styles:
+            s = style_sample(self.exemplars, style, self.cfg, self.aug, self.tcfg.seed, draw)
+            for j in self.cfg.supervised_levels:
+                s.target(j)  # computed and kept by the sample
+            self._fixed_styles[style] = s
+        return self._fixed_styles[style]
+
+    def adversarial_content(self, it: int) -> Sample:
+        """Iteration ``it``'s adversarial content: ``augmented_sample`` of (seed, it), from the prefetcher if any."""
+        if self.prefetch is not None:
+            return self.prefetch.get(it, self.tcfg.steps)
+        return augmented_sample(self.exemplars, self.cfg, self.aug, self.tcfg.seed, it)
 
     def reconstruction_step(self, it: int, r: int) -> tuple[dict[str, float], SampleView]:
         """One G step reproducing a style shape in its own style; returns losses and the sample's first view.
@@ -341,7 +373,7 @@ class Trainer:
         pyramid), cropped to the window where level j is windowed.
         """
         cfg = self.cfg
-        content = augmented_sample(self.exemplars, cfg, self.aug, self.tcfg.seed, it)
+        content = self.adversarial_content(it)
         (v,) = self._views(content, it, 300)
         occ = self._inputs(content)[0]
 
@@ -524,31 +556,39 @@ def train(
     times = []
     previews = _Previews(trainer, out / "previews") if tcfg.preview_every else None
     monitor = Monitor(trainer.exemplars, cfg, trainer.aug, trainer.teacher)
+    adversarial_ahead = tcfg.steps > max(trainer.step, tcfg.warmup_iters)
+    if tcfg.data_workers and adversarial_ahead:
+        trainer.prefetch = ContentPrefetcher(trainer.exemplars, cfg, trainer.aug, tcfg.seed, tcfg.data_workers)
     start = time.perf_counter()
-    with open(log_path, "a", encoding="utf-8") as log:
-        while trainer.step < tcfg.steps:
-            t0 = time.perf_counter()
-            losses = trainer.iteration()
-            dt = time.perf_counter() - t0
-            trainer.wall_s += dt
-            times.append(dt)
-            if not all(np.isfinite(v) for v in losses.values()):
-                raise DetailizeError(f"training diverged at step {trainer.step}: {losses}", file=log_path,
-                                     hint="resume from last.pt with a lower learning rate")
-            row = {"step": trainer.step, "seconds": round(dt, 4), **{k: round(v, 6) for k, v in losses.items()}}
-            if tcfg.monitor_every and (trainer.step % tcfg.monitor_every == 0 or trainer.step == tcfg.steps):
-                row["monitor"] = monitor.figures(trainer.gen)
-            log.write(json.dumps(row) + "\n")
-            log.flush()
-            out_of_time = stop_after_s is not None and time.perf_counter() - start >= stop_after_s
-            if trainer.step % tcfg.checkpoint_every == 0 or trainer.step == tcfg.steps or out_of_time:
-                save_checkpoint(last, trainer.checkpoint(full=True))
-            if previews and (trainer.step % tcfg.preview_every == 0 or trainer.step == tcfg.steps):
-                previews.write(trainer.step)
-            if progress is not None:
-                progress(trainer.step, tcfg.steps, losses)
-            if out_of_time:
-                break
+    try:
+        with open(log_path, "a", encoding="utf-8") as log:
+            while trainer.step < tcfg.steps:
+                t0 = time.perf_counter()
+                losses = trainer.iteration()
+                dt = time.perf_counter() - t0
+                trainer.wall_s += dt
+                times.append(dt)
+                if not all(np.isfinite(v) for v in losses.values()):
+                    raise DetailizeError(f"training diverged at step {trainer.step}: {losses}", file=log_path,
+                                         hint="resume from last.pt with a lower learning rate")
+                row = {"step": trainer.step, "seconds": round(dt, 4), **{k: round(v, 6) for k, v in losses.items()}}
+                if tcfg.monitor_every and (trainer.step % tcfg.monitor_every == 0 or trainer.step == tcfg.steps):
+                    row["monitor"] = monitor.figures(trainer.gen)
+                log.write(json.dumps(row) + "\n")
+                log.flush()
+                out_of_time = stop_after_s is not None and time.perf_counter() - start >= stop_after_s
+                if trainer.step % tcfg.checkpoint_every == 0 or trainer.step == tcfg.steps or out_of_time:
+                    save_checkpoint(last, trainer.checkpoint(full=True))
+                if previews and (trainer.step % tcfg.preview_every == 0 or trainer.step == tcfg.steps):
+                    previews.write(trainer.step)
+                if progress is not None:
+                    progress(trainer.step, tcfg.steps, losses)
+                if out_of_time:
+                    break
+    finally:
+        if trainer.prefetch is not None:
+            trainer.prefetch.close()
+            trainer.prefetch = None
     save_checkpoint(model_path, trainer.checkpoint(full=False))
     return TrainResult(trainer.step, last, model_path, log_path, losses,
                        float(np.mean(times)) if times else 0.0)
