@@ -58,8 +58,10 @@ def train_command(
                                        "of 3e-4, not 1e-3), warmup_centred (warmup_low, each exemplar at the "
                                        "reference's centred placement, not a random offset), warmup_centred_r4 "
                                        "(warmup_centred, 4 reconstruction steps per adversarial step until iteration "
-                                       "5000) or distill (warmup + quilt's outputs as half the targets); recorded in "
-                                       "the checkpoint, a resume must name the same."),
+                                       "5000), warmup_centred_r4_long (the same until 20000), warmup_centred_long "
+                                       "(warmup_centred_r4_long with an 8000-iteration warm-up) or distill (warmup + "
+                                       "quilt's outputs as half the targets); recorded in the checkpoint, a resume "
+                                       "must name the same."),
     seed: int = typer.Option(0, "--seed"),
     device: str = typer.Option(Device.AUTO.value, "--device", help="auto, cpu, cuda or cuda:N."),
     checkpoint_every: int = typer.Option(100, "--checkpoint-every", help="Iterations between last.pt saves."),

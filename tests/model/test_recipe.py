@@ -291,3 +291,41 @@ def test_warmup_centred_r4_trains_like_warmup_centred_until_its_adversarial_phas
         trainer.iteration()
         counts[it] = len(calls)
     assert counts == {WARMUP_ITERS - 1: 1, WARMUP_ITERS: 4}
+
+
+def test_the_long_recipes_stretch_the_4_to_1_phase_and_the_warmup(tmp_path):
+    from model.recipes import R4_LONG_UNTIL, R4_UNTIL, WARMUP_ITERS, WARMUP_LONG_ITERS, recipe_configs
+
+    cfg_r, t_r = recipe_configs("warmup_centred_r4", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_centred_r4"))
+    cfg_rl, t_rl = recipe_configs("warmup_centred_r4_long", _cfg(),
+                                  _tcfg(tmp_path, 1, recipe="warmup_centred_r4_long"))
+    cfg_l, t_l = recipe_configs("warmup_centred_long", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_centred_long"))
+    assert cfg_r == cfg_rl == cfg_l
+    assert t_r.recon_early_iters == R4_UNTIL < R4_LONG_UNTIL == t_rl.recon_early_iters == t_l.recon_early_iters
+    assert t_r.warmup_iters == t_rl.warmup_iters == WARMUP_ITERS < WARMUP_LONG_ITERS == t_l.warmup_iters
+    assert dataclasses.replace(t_rl, recon_early_iters=R4_UNTIL, recipe=t_r.recipe) == t_r
+    assert dataclasses.replace(t_l, warmup_iters=WARMUP_ITERS, recipe=t_rl.recipe) == t_rl
+    trainer = Trainer(EXS, cfg_l, t_l)
+    assert trainer.learning_rate(WARMUP_ITERS) > t_l.lr  # the cosine is stretched, not cut
+    assert trainer.learning_rate(WARMUP_LONG_ITERS) == pytest.approx(t_l.lr)
+
+
+def test_a_state_moves_to_a_longer_4_to_1_phase_only_before_the_phases_part(tmp_path):
+    from model.recipe_move import move_state_recipe
+    from model.recipes import R4_UNTIL, recipe_configs
+
+    cfg_r, t_r = recipe_configs("warmup_centred_r4", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_centred_r4"))
+    res = train(EXS, cfg_r, dataclasses.replace(t_r, warmup_iters=0), resume=False)
+    ck = load_checkpoint(res.checkpoint, training_state=True)
+    for step, ok in ((4000, True), (R4_UNTIL, True), (R4_UNTIL + 1, False)):
+        state = dataclasses.replace(ck, training={**ck.training, "step": step})
+        if ok:  # iterations < step took 4 reconstruction steps under both recipes
+            moved = move_state_recipe(state, "warmup_centred_r4_long")
+            assert moved.training["recipe"] == "warmup_centred_r4_long"
+            assert moved.training["train_config"]["recon_early_iters"] == 20000
+            assert moved.training["recipe_moved_from"] == {"recipe": "warmup_centred_r4", "step": step}
+        else:  # iteration R4_UNTIL took 1 under warmup_centred_r4 and would take 4 under the long one
+            with pytest.raises(ValueError, match="train differently"):
+                move_state_recipe(state, "warmup_centred_r4_long")
+    with pytest.raises(ValueError, match="train differently"):  # another warm-up is another history
+        move_state_recipe(dataclasses.replace(ck, training={**ck.training, "step": 10}), "warmup_centred_long")
