@@ -27,6 +27,10 @@ Figures (``Monitor.figures``):
   those contents; ``cell_fill_min``: the least occupied fraction of any occupied coarse
   cell's 16³ block over all outputs; ``cells_half_full``: the fraction of occupied cells
   whose block is at least half occupied.
+- ``extra_parts``: mean over those outputs of how many more connected pieces (26-connected
+  fine voxels) the output has than its coarse input (26-connected cells), floored at 0: a roof
+  that floats above its trunk, or a cap torn into shards, counts here where Strict-IOU,
+  measured per coarse cell, does not see it.
 - ``quilt_iou`` (only for a run that distils, given its ``model.distill.QuiltTeacher``): mean
   IOU between each of those outputs and quilt's output for the same content and style,
   made once (quilt seed 0): how far the model has come towards its teacher on shapes
@@ -83,6 +87,14 @@ def detailize_sample(gen: Generator, sample: Sample, style_index: np.ndarray | N
     out = detailize_field(gen, sample, style_index)
     return min_fill_projection(out, sample.coarse_occupancy, cfg.factor, cfg.min_cell_fill,
                                thin_only=cfg.min_fill_thin_only) > ISO_LEVEL
+
+
+def pieces(binary: np.ndarray) -> int:
+    """Number of 26-connected components of a 3-D bool grid."""
+    import cc3d
+
+    return int(cc3d.connected_components(np.ascontiguousarray(binary, dtype=np.uint8), connectivity=26,
+                                         return_N=True)[1])
 
 
 def cell_fill(fine: np.ndarray, coarse: np.ndarray, factor: int) -> np.ndarray:
@@ -166,7 +178,7 @@ class Monitor:
         try:
             per = self.self_reconstruction(gen)
             self_ious, raw_ious = [p for _, p in per], [r for r, _ in per]
-            overlaps, stricts, fills, quilt = [], [], [], []
+            overlaps, stricts, fills, quilt, extra_parts = [], [], [], [], []
             for k, (c, a, b) in enumerate(contents):
                 outs = [detailize_sample(gen, c, np.full(c.coarse_occupancy.shape, st, dtype=np.int64))
                         for st in (a, b)]
@@ -178,6 +190,7 @@ class Monitor:
                     pooled = out.reshape(x, f, y, f, z, f).any(axis=(1, 3, 5))
                     stricts.append(_iou(pooled, c.coarse_occupancy))
                     fills.append(cell_fill(out, c.coarse_occupancy, f))
+                    extra_parts.append(max(0, pieces(out) - pieces(c.coarse_occupancy)))
         finally:
             gen.train(was_training)
         all_fills = np.concatenate(fills)
@@ -196,6 +209,7 @@ class Monitor:
             "strict": round(float(np.mean(stricts)), 4),
             "cell_fill_min": round(float(all_fills.min()), 4),
             "cells_half_full": round(float(np.mean(all_fills >= 0.5)), 4),
+            "extra_parts": round(float(np.mean(extra_parts)), 4),
             **extra,
             **({"self_iou_raw_each": [round(x, 4) for x in raw_ious],
                 "self_iou_each": [round(x, 4) for x in self_ious]} if per_exemplar else {}),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -329,3 +330,19 @@ def test_a_state_moves_to_a_longer_4_to_1_phase_only_before_the_phases_part(tmp_
                 move_state_recipe(state, "warmup_centred_r4_long")
     with pytest.raises(ValueError, match="train differently"):  # another warm-up is another history
         move_state_recipe(dataclasses.replace(ck, training={**ck.training, "step": 10}), "warmup_centred_long")
+
+
+def test_extra_parts_counts_the_pieces_an_output_adds_to_its_input():
+    from model.monitor import pieces
+
+    grid = np.zeros((8, 8, 8), bool)
+    grid[1:3, 1:3, 1:3] = True
+    assert pieces(grid) == 1
+    grid[4, 4, 4] = True  # touches nothing
+    assert pieces(grid) == 2
+    grid[3, 3, 3] = True  # diagonal neighbours join under 26-connectivity
+    assert pieces(grid) == 1 and pieces(np.zeros((2, 2, 2), bool)) == 0
+    cfg = dataclasses.replace(_cfg(), min_cell_fill=1.0)
+    torch.manual_seed(0)
+    fig = Monitor(EXS, cfg, _tcfg(Path("x"), 1).augment()).figures(Generator(cfg))
+    assert fig["extra_parts"] == 0.0  # every occupied cell filled whole: the input's pieces exactly
