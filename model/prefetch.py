@@ -20,7 +20,7 @@ from multiprocessing.pool import AsyncResult
 from typing import Any
 
 from model.config import ModelConfig
-from model.data import AugmentConfig, Exemplar, Sample, augmented_sample
+from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, style_sample
 
 _WORKER: dict[str, Any] = {}
 
@@ -32,6 +32,14 @@ def _init(exemplars: Sequence[Exemplar], cfg: ModelConfig, aug: AugmentConfig, s
 def _content(it: int) -> Sample:
     w = _WORKER
     return augmented_sample(w["exemplars"], w["cfg"], w["aug"], w["seed"], it)
+
+
+def _style_with_targets(style: int) -> Sample:
+    w = _WORKER
+    s = style_sample(w["exemplars"], style, w["cfg"], w["aug"], w["seed"], 0)
+    for j in w["cfg"].supervised_levels:
+        s.target(j)  # kept by the sample, and pickled with it
+    return s
 
 
 class ContentPrefetcher:
@@ -57,6 +65,15 @@ class ContentPrefetcher:
             if k not in self._pending:
                 self._pending[k] = self._pool.apply_async(_content, (k,))
         return self._pending.pop(it).get()
+
+    def style_samples(self, styles: Sequence[int]) -> list[Sample]:
+        """``style_sample`` of each style at draw 0 with its whole targets of every supervised level, in parallel.
+
+        Only for a fixed placement (``aug.style_offset`` set), where the draw does not matter:
+        ``Trainer.style_sample``'s kept samples, made at once instead of one per new style
+        (about 3 s each at R = 256 on one core).
+        """
+        return self._pool.map(_style_with_targets, list(styles), chunksize=1)
 
     def close(self) -> None:
         self._pool.terminate()

@@ -559,6 +559,9 @@ def train(
     adversarial_ahead = tcfg.steps > max(trainer.step, tcfg.warmup_iters)
     if tcfg.data_workers and adversarial_ahead:
         trainer.prefetch = ContentPrefetcher(trainer.exemplars, cfg, trainer.aug, tcfg.seed, tcfg.data_workers)
+        if trainer.aug.style_offset is not None:  # the kept style samples, made in parallel
+            styles = range(len(trainer.exemplars))
+            trainer._fixed_styles.update(zip(styles, trainer.prefetch.style_samples(styles)))
     start = time.perf_counter()
     try:
         with open(log_path, "a", encoding="utf-8") as log:

@@ -43,6 +43,16 @@ def test_prefetched_contents_are_the_samples_of_their_iterations():
             np.testing.assert_array_equal(got.fine_labels, ref.fine_labels)
             assert got.assignment == ref.assignment and got.sources == ref.sources
             assert max(pre._pending, default=it) <= min(7, it + 3)  # bounded, never past stop
+        # a fixed placement's style samples, made by the workers with their whole targets
+        fixed = _tcfg(Path("unused"), 1, style_offset="centre").augment()
+    with ContentPrefetcher(EXS, cfg, fixed, seed=3, workers=2) as pre:
+        made = pre.style_samples([1, 0])
+    for style, s in zip([1, 0], made):
+        ref = style_sample(EXS, style, cfg, fixed, 3, 0)
+        np.testing.assert_array_equal(s.fine_labels, ref.fine_labels)
+        for j in cfg.supervised_levels:
+            assert j in s.__dict__["_whole_targets"]  # travelled with the sample
+            np.testing.assert_array_equal(s.target(j), ref.target(j))
 
 
 def test_a_run_with_data_workers_logs_the_same_losses(tmp_path):
