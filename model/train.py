@@ -533,9 +533,9 @@ def train(
         progress: called after every iteration with (step, total, losses) — the CLI's progress bar.
         style_set: the set's provenance (``stylesets.provenance.StyleSetRecord.to_json()``: name, digest,
             each exemplar's licence), recorded in the checkpoints so built assets can credit exemplars.
-        stop_after_s: stop after the first iteration that ends this many seconds after the
-            start (a time-boxed session, e.g. ``scripts/train_resume.py`` on a lent GPU); the
-            state is saved to ``last.pt`` and ``model.pt`` as at the end, and the same call
+        stop_after_s: stop after the first iteration that ends this many seconds after this call
+            began, set-up (restoring, worker start, kept style samples) included (a time-boxed
+            session, e.g. ``scripts/train_resume.py`` on a lent GPU); the state is saved to ``last.pt`` and ``model.pt`` as at the end, and the same call
             continues later.
         teacher_set: the ``stylesets.format.StyleSet`` the exemplars were read from, quilt's source
             when ``tcfg.distill_frac`` > 0 (None: a set made from the exemplars themselves).
@@ -543,6 +543,7 @@ def train(
         DetailizeError: inconsistent set/config, unusable resume checkpoint, unwritable folder,
             or a loss that became NaN/inf (training diverged; the last checkpoint is kept).
     """
+    start = time.perf_counter()
     out = Path(tcfg.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     last, model_path, log_path = out / "last.pt", out / "model.pt", out / "log.jsonl"
@@ -562,7 +563,6 @@ def train(
         if trainer.aug.style_offset is not None:  # the kept style samples, made in parallel
             styles = range(len(trainer.exemplars))
             trainer._fixed_styles.update(zip(styles, trainer.prefetch.style_samples(styles)))
-    start = time.perf_counter()
     try:
         with open(log_path, "a", encoding="utf-8") as log:
             while trainer.step < tcfg.steps:

@@ -29,12 +29,16 @@ import torch
 print("torch", torch.__version__, "cuda", torch.cuda.is_available(),
       torch.cuda.get_device_name() if torch.cuda.is_available() else "")
 PYEOF
+# MINUTES counts from each run's start, set-up included; the session logs are written where they come
+# back ($OUT) as they grow, so a command stopped at its limit still returns them.
 pids=()
 for spec in "$@"; do
     run="${spec%%:*}"; steps="${spec##*:}"
+    log="$run/gpu_session.log"
+    if [ -n "${OUT:-}" ]; then mkdir -p "$OUT/$(basename "$run")"; log="$OUT/$(basename "$run")/gpu_session.log"; fi
     "$PY" scripts/train_resume.py "$run" --set "$SET" --steps "$steps" --device cuda --minutes "$MINUTES" \
         --checkpoint-every 500 --data-workers "${DATA_WORKERS:-6}" --monitor-every "${MONITOR_EVERY:-500}" \
-        > "$run/gpu_session.log" 2>&1 &
+        > "$log" 2>&1 &
     pids+=($!)
 done
 for i in "${!pids[@]}"; do
@@ -42,10 +46,10 @@ for i in "${!pids[@]}"; do
 done
 for spec in "$@"; do
     run="${spec%%:*}"
+    if [ -n "${OUT:-}" ]; then cp "$OUT/$(basename "$run")/gpu_session.log" "$run/"; fi
     tail -3 "$run/gpu_session.log"
     "$PY" scripts/gpu_timing.py "$run" 2>&1 | tee "$run/gpu_timing.txt"
     if [ -n "${OUT:-}" ]; then
-        mkdir -p "$OUT/$(basename "$run")"
-        cp "$run/last.pt" "$run/log.jsonl" "$run/gpu_session.log" "$run/gpu_timing.txt" "$OUT/$(basename "$run")/"
+        cp "$run/last.pt" "$run/log.jsonl" "$run/gpu_timing.txt" "$OUT/$(basename "$run")/"
     fi
 done
