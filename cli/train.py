@@ -59,7 +59,8 @@ def train_command(
                                        "reference's centred placement, not a random offset), warmup_centred_r4 "
                                        "(warmup_centred, 4 reconstruction steps per adversarial step until iteration "
                                        "5000), warmup_centred_r4_long (the same until 20000), warmup_centred_long "
-                                       "(warmup_centred_r4_long with an 8000-iteration warm-up) or distill (warmup + "
+                                       "(warmup_centred_r4_long with an 8000-iteration warm-up), "
+                                       "warmup_centred_long_r1 (its adversarial phase 1:1) or distill (warmup + "
                                        "quilt's outputs as half the targets); recorded in the checkpoint, a resume "
                                        "must name the same."),
     seed: int = typer.Option(0, "--seed"),

@@ -109,6 +109,11 @@ def _warmup_centred_long(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, T
     return m, dataclasses.replace(t, warmup_iters=WARMUP_LONG_ITERS)
 
 
+def _warmup_centred_long_r1(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long(m, t)
+    return m, dataclasses.replace(t, recon_early_iters=0)
+
+
 #: ModelConfig fields read only at inference (``model/infer.py``'s projection): two recipes that differ in
 #: nothing else train the same model, so a training state may move from one to the other.
 INFERENCE_ONLY_FIELDS = ("min_cell_fill", "min_fill_thin_only")
@@ -133,6 +138,8 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
                                _warmup_centred_r4_long),
     "warmup_centred_long": ("warmup_centred_r4_long with an 8000-iteration warm-up (its cosine decay stretched)",
                             _warmup_centred_long),
+    "warmup_centred_long_r1": ("warmup_centred_long with 1 reconstruction step per adversarial step (1:1)",
+                               _warmup_centred_long_r1),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

@@ -309,6 +309,10 @@ def test_the_long_recipes_stretch_the_4_to_1_phase_and_the_warmup(tmp_path):
     trainer = Trainer(EXS, cfg_l, t_l)
     assert trainer.learning_rate(WARMUP_ITERS) > t_l.lr  # the cosine is stretched, not cut
     assert trainer.learning_rate(WARMUP_LONG_ITERS) == pytest.approx(t_l.lr)
+    # its 1:1 variant differs only after the warm-up, so a state at its end moves to it
+    cfg_1, t_1 = recipe_configs("warmup_centred_long_r1", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_centred_long_r1"))
+    assert cfg_1 == cfg_l and t_1.recon_early_iters == 0
+    assert dataclasses.replace(t_1, recon_early_iters=R4_LONG_UNTIL, recipe=t_l.recipe) == t_l
 
 
 def test_a_state_moves_to_a_longer_4_to_1_phase_only_before_the_phases_part(tmp_path):
@@ -330,6 +334,14 @@ def test_a_state_moves_to_a_longer_4_to_1_phase_only_before_the_phases_part(tmp_
                 move_state_recipe(state, "warmup_centred_r4_long")
     with pytest.raises(ValueError, match="train differently"):  # another warm-up is another history
         move_state_recipe(dataclasses.replace(ck, training={**ck.training, "step": 10}), "warmup_centred_long")
+    long_ck = dataclasses.replace(ck, training={**ck.training, "recipe": "warmup_centred_long"})
+    for step, ok in ((8000, True), (8001, False)):  # 1:1 from the warm-up's end: the same warm-up history
+        state = dataclasses.replace(long_ck, training={**long_ck.training, "step": step})
+        if ok:
+            assert move_state_recipe(state, "warmup_centred_long_r1").training["train_config"]["recon_early_iters"] == 0
+        else:
+            with pytest.raises(ValueError, match="train differently"):
+                move_state_recipe(state, "warmup_centred_long_r1")
 
 
 def test_extra_parts_counts_the_pieces_an_output_adds_to_its_input():
