@@ -19,6 +19,13 @@
 #   run(command="bash scripts/train_gpu.sh 7.5 gpu_runs/things.npz gpu_runs/long:8000 gpu_runs/r4long:20000",
 #       timeout_s=570)
 # then copy the files from files_at into the runs' folders and commit them with the logs.
+# The GPU image (Python 3.12) lacks pydantic and cc3d, which model/ imports: fetch their wheels here once,
+#   python3 -m pip download --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+#     --platform manylinux_2_28_x86_64 --platform manylinux2014_x86_64 -d .whl pydantic==2.14.3 \
+#     pydantic_core==2.50.4 annotated-types==0.8.0 typing-inspection==0.4.5 typing_extensions==4.16.0 \
+#     connected-components-3d==4.1.1
+# (.whl in .git/info/exclude), carry .whl and begin the command with
+#   python3 -m pip install -q --no-index --no-deps --target /tmp/site .whl/*.whl && export PYTHONPATH=/tmp/site;
 set -uo pipefail
 cd "$(dirname "$0")/.."
 MINUTES="$1"; SET="$2"; shift 2
