@@ -8,7 +8,8 @@ resolution, windows, learning rates — is read from ``RUN_DIR/last.pt``'s train
 so the run continues exactly as ``decollage train`` would (iteration i draws its data
 from (seed, i); weights, optimizers and RNG are restored). Only ``--steps``,
 ``--device``, ``--checkpoint-every``, ``--data-workers`` (processes that make the adversarial
-contents ahead: the same samples), ``--monitor-every`` (the log's quick figures) and the time
+contents ahead: the same samples; not read from the state, whose value was another machine's),
+``--monitor-every`` (the log's quick figures) and the time
 box change. It imports only torch,
 numpy, scipy and this repo's ``model``/``stylesets``/``core`` code, so it runs on a
 machine that has those (a lent GPU's image) from a plain checkout with
@@ -37,7 +38,8 @@ def main() -> None:
     ap.add_argument("--device", default="auto")
     ap.add_argument("--minutes", type=float, default=None, help="stop (saving last.pt) after this long")
     ap.add_argument("--checkpoint-every", type=int, default=None)
-    ap.add_argument("--data-workers", type=int, default=None, help="processes making contents ahead (0: none)")
+    ap.add_argument("--data-workers", type=int, default=0,
+                    help="processes making contents ahead (default 0: none; a machine's budget, not the run's)")
     ap.add_argument("--monitor-every", type=int, default=None, help="iterations between the monitor's figures")
     a = ap.parse_args()
     ck = load_checkpoint(a.run / "last.pt", training_state=True)
@@ -46,7 +48,7 @@ def main() -> None:
     tcfg = TrainConfig(**recorded)
     tcfg = dataclasses.replace(tcfg, out_dir=str(a.run), steps=a.steps, device=a.device,
                                checkpoint_every=a.checkpoint_every or tcfg.checkpoint_every, preview_every=0,
-                               data_workers=tcfg.data_workers if a.data_workers is None else a.data_workers,
+                               data_workers=a.data_workers,
                                monitor_every=tcfg.monitor_every if a.monitor_every is None else a.monitor_every)
     sset = load_set(a.set)
     exemplars = exemplars_from_set(sset)
