@@ -504,6 +504,18 @@ class _Previews:
         return write_preview(t.gen, self.samples, self.folder / f"step_{step:06d}.png")
 
 
+def _cut_log(log_path: Path, step: int) -> None:
+    """Drop the log's rows after ``step``: a run stopped between checkpoints logged iterations it redoes."""
+    if not log_path.exists():
+        return
+    lines = log_path.read_text(encoding="utf-8").splitlines(keepends=True)
+    kept = [line for line in lines if line.strip() and json.loads(line).get("step", 0) <= step]
+    if len(kept) != len(lines):
+        tmp = log_path.with_suffix(".jsonl.tmp")
+        tmp.write_text("".join(kept), encoding="utf-8")
+        tmp.replace(log_path)
+
+
 def _plain(obj: Any) -> Any:
     """Dataclass dicts → JSON types (tuples → lists)."""
     if isinstance(obj, dict):
@@ -551,6 +563,7 @@ def train(
     trainer.style_set = style_set
     if resume and last.exists():
         trainer.restore(last)
+        _cut_log(log_path, trainer.step)
     elif log_path.exists():
         log_path.unlink()  # a fresh run starts a fresh log
     losses: dict[str, float] = {}

@@ -73,9 +73,12 @@ def test_two_steps_finite_checkpoint_loads_and_resume_continues(tmp_path):
     fine = DecollageDetailizer(str(res.model), "cpu").detailize(LabeledGrid(occ, part, style, PARTS, ("crate", "tower"), 1.0))
     assert fine.shape == (32, 48, 32)
 
-    # Resume continues from step 2 to step 3 ...
+    # Resume continues from step 2 to step 3 (rows a stopped run logged after its last checkpoint are dropped) ...
+    with open(res.log, "a", encoding="utf-8") as f:
+        f.write(json.dumps({"step": 3, "recon": 9.9}) + "\n")
     res3 = train(EXS, _cfg(), _tcfg(tmp_path, 3))
     assert res3.step == 3 and [r["step"] for r in _log(res3.log)] == [1, 2, 3]
+    assert _log(res3.log)[-1]["recon"] != 9.9
     # ... and ends where an unbroken 3-step run ends (data is a function of (seed, step); state restored).
     ref = train(EXS, _cfg(), dataclasses.replace(_tcfg(tmp_path, 3), out_dir=str(tmp_path / "ref")), resume=False)
     a = load_checkpoint(res3.checkpoint).generator
