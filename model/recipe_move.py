@@ -50,16 +50,9 @@ def move_state_recipe(ck: Checkpoint, name: str) -> Checkpoint:
 _RECON_COUNT_FIELDS = ("recon_steps_early", "recon_early_iters")
 
 
-def _recon_steps(t: TrainConfig, it: int) -> int:
-    """Reconstruction steps of iteration ``it`` (``Trainer.iteration``'s rule)."""
-    if it < t.warmup_iters:
-        return 1
-    return max(1, t.recon_steps_early) if it < t.recon_early_iters else 1
-
-
 def _same_history(a: TrainConfig, b: TrainConfig, step: int) -> bool:
     """Whether the first ``step`` iterations are the same under both settings."""
     rest = {f: getattr(a, f) for f in _RECON_COUNT_FIELDS}
     if dataclasses.replace(b, **rest) != a:
         return False
-    return all(_recon_steps(a, it) == _recon_steps(b, it) for it in range(step))
+    return all(a.reconstruction_steps(it) == b.reconstruction_steps(it) for it in range(step))

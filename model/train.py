@@ -212,6 +212,13 @@ class TrainConfig:
             raise DetailizeError(f"unknown ablation {self.ablation!r}", field="ablation",
                                  hint="use one of: " + ", ".join(ABLATIONS))
 
+    def reconstruction_steps(self, it: int) -> int:
+        """Reconstruction steps of iteration ``it``: 1 in the warm-up, ``recon_steps_early`` until
+        ``recon_early_iters``, then 1 (``Trainer.iteration``; ``model.recipe_move`` compares recipes by it)."""
+        if it < self.warmup_iters or it >= self.recon_early_iters:
+            return 1
+        return max(1, self.recon_steps_early)
+
     def augment(self) -> AugmentConfig:
         return AugmentConfig(resolution=self.resolution, style_offset=self.style_offset)
 
@@ -331,6 +338,17 @@ class Trainer:
             self._fixed_styles[style] = s
         return self._fixed_styles[style]
 
+    def start_workers(self) -> None:
+        """With ``data_workers`` and adversarial iterations ahead: the prefetcher, and the kept style samples
+        of a fixed placement made by its workers at once (``train`` closes it)."""
+        t = self.tcfg
+        if not t.data_workers or t.steps <= max(self.step, t.warmup_iters):
+            return
+        self.prefetch = ContentPrefetcher(self.exemplars, self.cfg, self.aug, t.seed, t.data_workers)
+        if self.aug.style_offset is not None:
+            styles = range(len(self.exemplars))
+            self._fixed_styles.update(zip(styles, self.prefetch.style_samples(styles)))
+
     def adversarial_content(self, it: int) -> Sample:
         """Iteration ``it``'s adversarial content: ``augmented_sample`` of (seed, it), from the prefetcher if any."""
         if self.prefetch is not None:
@@ -418,9 +436,9 @@ class Trainer:
             losses, _ = self.reconstruction_step(it, 0)
             self.step += 1
             return {**losses, "lr": lr}
-        n_rec = self.tcfg.recon_steps_early if it < self.tcfg.recon_early_iters else 1
+        n_rec = self.tcfg.reconstruction_steps(it)
         recon, distilled, real = [], 0.0, None
-        for r in range(max(1, n_rec)):
+        for r in range(n_rec):
             losses, real = self.reconstruction_step(it, r)
             recon.append(losses["recon"])
             distilled += losses.get("distilled", 0.0)
@@ -570,12 +588,7 @@ def train(
     times = []
     previews = _Previews(trainer, out / "previews") if tcfg.preview_every else None
     monitor = Monitor(trainer.exemplars, cfg, trainer.aug, trainer.teacher)
-    adversarial_ahead = tcfg.steps > max(trainer.step, tcfg.warmup_iters)
-    if tcfg.data_workers and adversarial_ahead:
-        trainer.prefetch = ContentPrefetcher(trainer.exemplars, cfg, trainer.aug, tcfg.seed, tcfg.data_workers)
-        if trainer.aug.style_offset is not None:  # the kept style samples, made in parallel
-            styles = range(len(trainer.exemplars))
-            trainer._fixed_styles.update(zip(styles, trainer.prefetch.style_samples(styles)))
+    trainer.start_workers()
     try:
         with open(log_path, "a", encoding="utf-8") as log:
             while trainer.step < tcfg.steps:

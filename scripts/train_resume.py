@@ -9,8 +9,7 @@ so the run continues exactly as ``decollage train`` would (iteration i draws its
 from (seed, i); weights, optimizers and RNG are restored). Only ``--steps``,
 ``--device``, ``--checkpoint-every``, ``--data-workers`` (processes that make the adversarial
 contents ahead: the same samples; not read from the state, whose value was another machine's),
-``--monitor-every`` (the log's quick figures) and the time
-box change. It imports only torch,
+``--monitor-every`` (the log's quick figures) and the time box change. It imports only torch,
 numpy, scipy and this repo's ``model``/``stylesets``/``core`` code, so it runs on a
 machine that has those (a lent GPU's image) from a plain checkout with
 ``PYTHONPATH=.``; the set is read from its ``.npz`` file (``decollage styles build``
