@@ -189,6 +189,13 @@ class Sample:
         t = smooth_target(max_pool(fine, k), lc)
         return t[tuple(slice(c.start * r - a, c.stop * r - a) for c, a in zip(cells, lo))]
 
+    def keep_targets(self, levels: Sequence[int]) -> "Sample":
+        """Compute and keep the whole-crop targets of ``levels`` (later ``target`` calls cut them; they
+        travel with the sample when pickled). Returns the sample."""
+        for j in levels:
+            self.target(j)
+        return self
+
     def style_index(self) -> np.ndarray:
         """(X, Y, Z) int64 style of every coarse cell (through its part), the generator's style input."""
         return np.asarray(self.assignment, dtype=np.int64)[self.coarse_labels]

@@ -37,9 +37,7 @@ def _content(it: int) -> Sample:
 def _style_with_targets(style: int) -> Sample:
     w = _WORKER
     s = style_sample(w["exemplars"], style, w["cfg"], w["aug"], w["seed"], 0)
-    for j in w["cfg"].supervised_levels:
-        s.target(j)  # kept by the sample, and pickled with it
-    return s
+    return s.keep_targets(w["cfg"].supervised_levels)
 
 
 class ContentPrefetcher:

@@ -333,9 +333,7 @@ class Trainer:
             return style_sample(self.exemplars, style, self.cfg, self.aug, self.tcfg.seed, draw)
         if style not in self._fixed_styles:
             s = style_sample(self.exemplars, style, self.cfg, self.aug, self.tcfg.seed, draw)
-            for j in self.cfg.supervised_levels:
-                s.target(j)  # computed and kept by the sample
-            self._fixed_styles[style] = s
+            self._fixed_styles[style] = s.keep_targets(self.cfg.supervised_levels)
         return self._fixed_styles[style]
 
     def start_workers(self) -> None:
