@@ -217,7 +217,7 @@ class TrainConfig:
         ``recon_early_iters``, then 1 (``Trainer.iteration``; ``model.recipe_move`` compares recipes by it)."""
         if it < self.warmup_iters or it >= self.recon_early_iters:
             return 1
-        return max(1, self.recon_steps_early)
+        return self.recon_steps_early
 
     def augment(self) -> AugmentConfig:
         return AugmentConfig(resolution=self.resolution, style_offset=self.style_offset)

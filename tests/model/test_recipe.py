@@ -315,6 +315,13 @@ def test_the_long_recipes_stretch_the_4_to_1_phase_and_the_warmup(tmp_path):
     assert dataclasses.replace(t_1, recon_early_iters=R4_LONG_UNTIL, recipe=t_l.recipe) == t_l
 
 
+def test_reconstruction_steps_per_iteration_follow_the_phases(tmp_path):
+    """One step in the warm-up, ``recon_steps_early`` until ``recon_early_iters``, then one."""
+    t = dataclasses.replace(_tcfg(tmp_path, 1), warmup_iters=3, recon_steps_early=4, recon_early_iters=6)
+    assert [t.reconstruction_steps(it) for it in range(8)] == [1, 1, 1, 4, 4, 4, 1, 1]
+    assert dataclasses.replace(t, recon_early_iters=2).reconstruction_steps(4) == 1
+
+
 def test_a_state_moves_to_a_longer_4_to_1_phase_only_before_the_phases_part(tmp_path):
     from model.recipe_move import move_state_recipe
     from model.recipes import R4_UNTIL, recipe_configs
