@@ -148,6 +148,14 @@ class LossConfig:
             before it, so at the fine levels it pulls towards the smoother grid; e.g.
             ``(1, 1, 0.1, 0.1)`` keeps it for structure at 32³/64³ and lowers it at
             128³/256³. L_down is not affected.
+        gamma_fill: weight of the cell-fill floor (``losses.fill_floor_loss``; 0 = off, the
+            paper's and the reference's losses). L_down's hinge is satisfied by one high voxel in
+            every 2³ block, so over four doublings an occupied coarse cell may keep as little as
+            one of its 16³ voxels: thin strokes and spires erode. The floor charges, at every
+            supervised level of the adversarial G step, each occupied coarse input cell whose
+            block's mean output lies below ``fill_floor``. Not applied to reconstruction steps
+            (the exemplars' own boundary cells may be less full).
+        fill_floor: the mean occupancy (in [0, 1]) an occupied coarse cell's block must keep.
     """
 
     beta_recon: float = 10.0
@@ -163,6 +171,8 @@ class LossConfig:
     smoothing_sigma: float = 1.0
     smoothing_passes: int = 4
     up_level_weights: tuple[float, ...] = ()
+    gamma_fill: float = 0.0
+    fill_floor: float = 0.5
 
     def up_weight(self, k: int) -> float:
         """γ_up times the factor of the k-th supervised output (``up_level_weights``)."""
@@ -500,12 +510,15 @@ def _validate(cfg: ModelConfig) -> None:
     if not 0 < cfg.leaky_slope < 1 or not 0 < cfg.clamp_slope < 1:
         raise _bad("slopes must lie in (0, 1)", "leaky_slope", "the paper uses 0.02 and 0.002")
     lc = cfg.losses
-    for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma"):
+    for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma",
+                 "gamma_fill"):
         if getattr(lc, name) < 0:
             raise _bad(f"{name} must be ≥ 0", f"losses.{name}", "weights are non-negative")
     if lc.up_level_weights and (len(lc.up_level_weights) != len(supervised) or min(lc.up_level_weights) < 0):
         raise _bad(f"up_level_weights needs {len(supervised)} non-negative factors, got {lc.up_level_weights}",
                    "losses.up_level_weights", "one factor per supervised level, or () for 1 everywhere")
+    if not 0 <= lc.fill_floor <= 1:
+        raise _bad("fill_floor must lie in [0, 1]", "losses.fill_floor", "e.g. 0.5 (half of every occupied cell)")
     if lc.joint_radius < 0 or lc.smoothing_passes < 0:
         raise _bad("joint_radius and smoothing_passes must be ≥ 0", "losses.joint_radius", "use 2 and 4")
     if not isinstance(lc.down_loss, DownLoss) or not isinstance(lc.target_smoothing, TargetSmoothing):
@@ -633,6 +646,9 @@ def _losses_from(data: Any, path: str) -> LossConfig:
         smoothing_sigma=r.float("smoothing_sigma"),
         smoothing_passes=r.int("smoothing_passes"),
         up_level_weights=tuple(r.float_list("up_level_weights", default=[])),
+        # absent from checkpoints written before the floor: off
+        gamma_fill=r.float("gamma_fill", default=0.0),
+        fill_floor=r.float("fill_floor", default=0.5),
     )
     r.done()
     return lc

@@ -170,6 +170,27 @@ def structure_losses(outputs: Sequence[Tensor], prevs: Sequence[Tensor], lc: Los
     return out
 
 
+def fill_floor_loss(outputs: Sequence[Tensor], coarse: Sequence[Tensor], floor: float) -> Tensor:
+    """Σ_k mean over occupied coarse cells of relu(floor − mean of output k over the cell's block)².
+
+    Args:
+        outputs: per supervised level, (B, 1, fX, fY, fZ) generator outputs in [0, 1].
+        coarse: per output, the binary coarse input cut to the same cells, (B, 1, X, Y, Z);
+            f = the output's resolution ratio to it (2^(j+1) at generator level j).
+        floor: the mean occupancy an occupied cell's block must keep (``LossConfig.fill_floor``).
+    Returns:
+        a scalar; 0 where no cell is occupied.
+    """
+    total = outputs[0].new_zeros(())
+    for out, occ in zip(outputs, coarse):
+        on = occ.to(out.dtype) > 0.5
+        if not bool(on.any()):
+            continue
+        mean = F.avg_pool3d(out.clamp(0, 1), out.shape[-1] // occ.shape[-1])
+        total = total + (F.relu(floor - mean) ** 2)[on].mean()
+    return total
+
+
 # ----------------------------------------------------------------------------- all levels
 #
 # The assembly the trainer (model/train.py) calls every step. Per supervised level k
@@ -218,8 +239,9 @@ def generator_adversarial_loss(
     masks: Sequence[DOutputMasks],
     alphas: Sequence[Tensor | float] | None,
     cfg: ModelConfig,
+    coarse: Sequence[Tensor] | None = None,
 ) -> dict[str, Tensor]:
-    """The adversarial G step's loss: Σ_levels GAN + γ_down·Σ L_down + Σ_levels γ_up·w_k·L_up.
+    """The adversarial G step's loss: Σ_levels GAN + γ_down·Σ L_down + Σ_levels γ_up·w_k·L_up [+ γ_fill·L_fill].
 
     Args:
         d_fake: per supervised level (``cfg.supervised_levels``), (B, N+1, *S_k) discriminator
@@ -229,9 +251,11 @@ def generator_adversarial_loss(
         masks: per level, the fake sample's masks aligned with ``d_fake[k]``.
         alphas: per level, (B, 1, *S_k) style-head weights or a number; None =
             ``cfg.losses.alpha_other`` everywhere (no adaptive α).
+        coarse: per output, the binary coarse input cut to its cells (B, 1, X, Y, Z), for the
+            cell-fill floor (``fill_floor_loss``); needed when ``cfg.losses.gamma_fill`` > 0.
     Returns:
-        ``total``, ``gan``, ``down``, ``up``, per-level ``gan{j}`` (j = generator level) and
-        per-output ``down{k}``/``up{k}``.
+        ``total``, ``gan``, ``down``, ``up``, ``fill`` (0 when off), per-level ``gan{j}``
+        (j = generator level) and per-output ``down{k}``/``up{k}``.
     """
     lc = cfg.losses
     levels = cfg.supervised_levels
@@ -242,7 +266,13 @@ def generator_adversarial_loss(
     out["gan"] = sum(out[f"gan{j}"] for j in levels[: len(d_fake)])  # type: ignore[assignment]
     st = structure_losses(outputs, prevs, lc)
     out.update({k: v for k, v in st.items() if k != "total"})
-    out["total"] = out["gan"] + lc.gamma_down * out["down"] + out["up_weighted"]
+    out["fill"] = outputs[0].new_zeros(())
+    if lc.gamma_fill > 0:
+        if coarse is None:
+            raise DetailizeError("the cell-fill floor needs the coarse input per level", field="coarse",
+                                 hint="pass the coarse input cut to every output's cells")
+        out["fill"] = fill_floor_loss(outputs, coarse, lc.fill_floor)
+    out["total"] = out["gan"] + lc.gamma_down * out["down"] + out["up_weighted"] + lc.gamma_fill * out["fill"]
     return out
 
 

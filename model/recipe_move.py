@@ -12,11 +12,11 @@ import dataclasses
 
 from model.checkpoint import Checkpoint
 from model.config import ModelConfig
-from model.recipes import INFERENCE_ONLY_FIELDS, RECIPES, recipe_configs
+from model.recipes import BRANCHABLE_FIELDS, INFERENCE_ONLY_FIELDS, RECIPES, recipe_configs
 from model.train import TrainConfig
 
 
-def move_state_recipe(ck: Checkpoint, name: str) -> Checkpoint:
+def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkpoint:
     """A training checkpoint (``model.checkpoint.Checkpoint``) moved to recipe ``name``, when that trains the same model.
 
     Both recipes are applied to the lean layout of the state's size and a default
@@ -24,8 +24,11 @@ def move_state_recipe(ck: Checkpoint, name: str) -> Checkpoint:
     weights, optimizers, RNG and step and takes the new recipe's values of those fields and
     its name. The training settings may also differ in how many reconstruction steps an
     iteration takes (``recon_steps_early``, ``recon_early_iters``) where that changes none of
-    the iterations the state has done. Raises ValueError (unknown recipe, or the recipes
-    train differently).
+    the iterations the state has done. With ``branch`` the recipes may also differ in
+    ``BRANCHABLE_FIELDS`` (the losses): the state then continues under the new recipe's losses
+    from its step on, which is a new run branched from the old one (its meta records
+    ``recipe_branched_from``), not the old run moved. Raises ValueError (unknown recipe, or the
+    recipes train differently).
     """
     old = ck.training.get("recipe", "reference")
     if name not in RECIPES or old not in RECIPES:
@@ -36,10 +39,12 @@ def move_state_recipe(ck: Checkpoint, name: str) -> Checkpoint:
     m_new, t_new = recipe_configs(name, base, t0)
     differ = [f.name for f in dataclasses.fields(m_old) if getattr(m_old, f.name) != getattr(m_new, f.name)]
     step = int(ck.training.get("step", 0))
-    if set(differ) - set(INFERENCE_ONLY_FIELDS) or not _same_history(t_old, t_new, step):
+    allowed = (*INFERENCE_ONLY_FIELDS, *BRANCHABLE_FIELDS) if branch else INFERENCE_ONLY_FIELDS
+    if set(differ) - set(allowed) or not _same_history(t_old, t_new, step):
         raise ValueError(f"recipes {old!r} and {name!r} train differently ({differ or 'TrainConfig'})")
-    config = dataclasses.replace(ck.config, **{f: getattr(m_new, f) for f in INFERENCE_ONLY_FIELDS})
-    training = {**ck.training, "recipe": name, "recipe_moved_from": {"recipe": old, "step": step}}
+    config = dataclasses.replace(ck.config, **{f: getattr(m_new, f) for f in allowed})
+    key = "recipe_branched_from" if branch and set(differ) & set(BRANCHABLE_FIELDS) else "recipe_moved_from"
+    training = {**ck.training, "recipe": name, key: {"recipe": old, "step": step}}
     if isinstance(training.get("train_config"), dict):
         training["train_config"] = {**training["train_config"], "recipe": name,
                                     **{f: getattr(t_new, f) for f in _RECON_COUNT_FIELDS}}

@@ -42,6 +42,12 @@ a resume must name the same one.
   ``recon_early_iters``) instead of one: identical during the warm-up. In the ``warmup_centred``
   run the adversarial phase's first 100 iterations cost 0.10 raw self-IOU (0.786 → 0.685) and
   never gave it back; the same state continued at 4:1 held 0.78–0.79 (``model/weights/things_selfrec.md``).
+- ``warmup_centred_long_r1_fill``: ``warmup_centred_long_r1`` with the cell-fill floor in the
+  adversarial G step (``LossConfig.gamma_fill`` = ``FILL_GAMMA``, floor 0.5): every recipe above
+  erodes one-cell strokes and spires (the thin check of ``model/weights/things_selfrec.md``:
+  48 % of text/CAD cells half full at 10,320 iterations), because L_down is met by one voxel
+  per 2³ block. Training differs only in that loss, so a ``warmup_centred_long_r1`` state can
+  branch into it (``scripts/rerecipe_state.py --branch``).
 - ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
   target the example-based ``quilt`` detailizer's output on an augmented training content
   (new shapes, a random style per part) instead of an exemplar as itself
@@ -66,6 +72,8 @@ R4_UNTIL = 5000
 R4_LONG_UNTIL = 20000
 #: Reconstruction-only iterations of ``warmup_centred_long``.
 WARMUP_LONG_ITERS = 8000
+#: Weight of the cell-fill floor in ``warmup_centred_long_r1_fill`` (γ_down's value).
+FILL_GAMMA = 10.0
 #: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
 DISTILL_FRAC = 0.5
 
@@ -114,9 +122,17 @@ def _warmup_centred_long_r1(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig
     return m, dataclasses.replace(t, recon_early_iters=0)
 
 
+def _warmup_centred_long_r1_fill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1(m, t)
+    return dataclasses.replace(m, losses=dataclasses.replace(m.losses, gamma_fill=FILL_GAMMA, fill_floor=0.5)), t
+
+
 #: ModelConfig fields read only at inference (``model/infer.py``'s projection): two recipes that differ in
 #: nothing else train the same model, so a training state may move from one to the other.
 INFERENCE_ONLY_FIELDS = ("min_cell_fill", "min_fill_thin_only")
+#: ModelConfig fields that set only what the steps are charged, not the weights' layout: a state may *branch* into a
+#: recipe that differs in them too (it continues under the new losses from its step on).
+BRANCHABLE_FIELDS = ("losses",)
 
 
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
@@ -140,6 +156,8 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
                             _warmup_centred_long),
     "warmup_centred_long_r1": ("warmup_centred_long with 1 reconstruction step per adversarial step (1:1)",
                                _warmup_centred_long_r1),
+    "warmup_centred_long_r1_fill": ("warmup_centred_long_r1 with the cell-fill floor (γ_fill 10, floor 0.5) in the "
+                                    "adversarial G step", _warmup_centred_long_r1_fill),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

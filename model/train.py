@@ -402,7 +402,8 @@ class Trainer:
         alphas = ([v.alpha(j, tuple(df.shape[2:]), cfg) for j, df in zip(levels, d_fake)]
                   if self.tcfg.adaptive_alpha else None)
         prevs = [v.crop_prev(outs[k - 1] if k else occ, j, levels[k - 1] if k else -1) for k, j in enumerate(levels)]
-        g = generator_adversarial_loss(d_fake, outs, prevs, fake_masks, alphas, cfg)
+        coarse = [v.crop_prev(occ, j, -1) for j in levels]
+        g = generator_adversarial_loss(d_fake, outs, prevs, fake_masks, alphas, cfg, coarse)
         self.opt_g.zero_grad(set_to_none=True)
         g["total"].backward()
         self.opt_g.step()
@@ -418,6 +419,7 @@ class Trainer:
         self.opt_d.step()
         return {
             "g_total": g["total"].item(), "gan": g["gan"].item(), "down": g["down"].item(), "up": g["up"].item(),
+            **({"fill": g["fill"].item()} if cfg.losses.gamma_fill > 0 else {}),
             "d_total": dl["total"].item(), "d_real": dl["real"].item(), "d_fake": dl["fake"].item(),
         }
 

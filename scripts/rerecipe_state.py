@@ -24,10 +24,12 @@ def main() -> None:
     ap.add_argument("src")
     ap.add_argument("dst")
     ap.add_argument("--recipe", required=True)
+    ap.add_argument("--branch", action="store_true",
+                    help="also allow recipes whose losses differ: the state continues under the new losses (a new run)")
     a = ap.parse_args()
     ck = load_checkpoint(a.src, training_state=True)
     try:
-        moved = move_state_recipe(ck, a.recipe)
+        moved = move_state_recipe(ck, a.recipe, branch=a.branch)
     except ValueError as exc:
         sys.exit(f"refused: {exc}")
     save_checkpoint(a.dst, moved)

@@ -13,6 +13,7 @@ from model.losses import (
     discriminator_loss,
     discriminator_loss_levels,
     down_loss,
+    fill_floor_loss,
     generator_adversarial_loss,
     generator_gan_loss,
     reconstruction_loss,
@@ -192,6 +193,41 @@ def test_generator_adversarial_loss_combines_gan_and_structure_terms():
     adaptive = generator_adversarial_loss(half, outputs, prevs, half_masks,
                                           whole_shape_alphas(half, [joint_everywhere], cfg), cfg)
     assert adaptive["gan3"].item() == pytest.approx(0.1 * 0.25 + 0.25)
+
+
+def test_fill_floor_charges_only_occupied_cells_below_the_floor():
+    occ = torch.zeros(1, 1, 2, 1, 1)
+    occ[0, 0, 0] = 1  # cell 0 occupied, cell 1 empty
+    out = torch.zeros(1, 1, 4, 2, 2)  # factor 2
+    out[0, 0, :2, :, :1] = 1.0  # cell 0 half full; cell 1 empty (not charged)
+    assert fill_floor_loss([out], [occ], 0.5).item() == pytest.approx(0.0)
+    assert fill_floor_loss([out], [occ], 0.75).item() == pytest.approx(0.25**2)
+    out[0, 0, 2:] = 1.0  # filling the empty cell changes nothing
+    assert fill_floor_loss([out], [occ], 0.75).item() == pytest.approx(0.25**2)
+    empty = torch.zeros(1, 1, 4, 2, 2, requires_grad=True)  # an eroded cell: (0.5 − 0)² per level, summed
+    loss = fill_floor_loss([empty, empty], [occ, occ], 0.5)
+    assert loss.item() == pytest.approx(2 * 0.25)
+    loss.backward()
+    assert (empty.grad[0, 0, :2] < 0).all() and (empty.grad[0, 0, 2:] == 0).all()  # pushes only the occupied cell up
+    assert fill_floor_loss([out], [torch.zeros_like(occ)], 0.5).item() == 0
+
+
+def test_generator_adversarial_loss_adds_the_fill_floor_when_weighted():
+    cfg = ModelConfig.paper(2, 3)
+    occ, labels = _two_part_content()
+    fake = StyledCoarse(occ, labels, (0, 1))
+    coarse = torch.ones(1, 1, 4, 4, 4)
+    outputs = [torch.full((1, 1, *(n * 2 ** (j + 1) for n in occ.shape)), 0.3) for j in range(4)]
+    d = _d_outputs(cfg, occ.shape, [1.0, 1.0, 1.0, 1.0])
+    args = (d, outputs, whole_shape_prevs(outputs, coarse), whole_shape_masks(d, fake, cfg), None)
+    off = generator_adversarial_loss(*args, cfg)
+    assert off["fill"].item() == 0
+    on_cfg = dataclasses.replace(cfg, losses=dataclasses.replace(cfg.losses, gamma_fill=10.0, fill_floor=0.5))
+    on = generator_adversarial_loss(*args, on_cfg, [coarse] * 4)
+    assert on["fill"].item() == pytest.approx(4 * 0.2**2, rel=1e-5)
+    assert on["total"].item() == pytest.approx(off["total"].item() + 10 * 4 * 0.2**2, rel=1e-5)
+    with pytest.raises(DetailizeError, match="coarse input"):
+        generator_adversarial_loss(*args, on_cfg)
 
 
 def test_one_adversarial_step_end_to_end_on_a_tiny_lean_model():

@@ -351,6 +351,26 @@ def test_a_state_moves_to_a_longer_4_to_1_phase_only_before_the_phases_part(tmp_
                 move_state_recipe(state, "warmup_centred_long_r1")
 
 
+def test_a_long_r1_state_branches_into_the_fill_floor_only_when_asked(tmp_path):
+    from model.recipe_move import move_state_recipe
+    from model.recipes import FILL_GAMMA, recipe_configs
+
+    cfg_r, t_r = recipe_configs("warmup_centred_long_r1", _cfg(), _tcfg(tmp_path, 1, recipe="warmup_centred_long_r1"))
+    res = train(EXS, cfg_r, dataclasses.replace(t_r, warmup_iters=0), resume=False)
+    ck = load_checkpoint(res.checkpoint, training_state=True)
+    state = dataclasses.replace(ck, training={**ck.training, "step": 10320})
+    with pytest.raises(ValueError, match="train differently"):  # a loss change is not a move
+        move_state_recipe(state, "warmup_centred_long_r1_fill")
+    branched = move_state_recipe(state, "warmup_centred_long_r1_fill", branch=True)
+    assert branched.config.losses.gamma_fill == FILL_GAMMA and ck.config.losses.gamma_fill == 0
+    assert branched.training["recipe_branched_from"] == {"recipe": "warmup_centred_long_r1", "step": 10320}
+    assert "recipe_moved_from" not in branched.training
+    for k in ck.generator:
+        assert torch.equal(ck.generator[k], branched.generator[k])
+    with pytest.raises(ValueError, match="train differently"):  # branching does not cover another history
+        move_state_recipe(state, "warmup_centred_r4", branch=True)
+
+
 def test_extra_parts_counts_the_pieces_an_output_adds_to_its_input():
     from model.monitor import pieces
 
