@@ -171,7 +171,11 @@ def structure_losses(outputs: Sequence[Tensor], prevs: Sequence[Tensor], lc: Los
 
 
 def fill_floor_loss(outputs: Sequence[Tensor], coarse: Sequence[Tensor], floor: float) -> Tensor:
-    """Σ_k mean over occupied coarse cells of relu(floor − mean of output k over the cell's block)².
+    """Σ_k mean over the occupied coarse cells below the floor of (floor − mean of output k over the cell's block)².
+
+    The mean runs over the deficient cells only, so a few eroded cells (a stroke, a spire) weigh as
+    much in a large content as in a small one: over all occupied cells the term was ~4e-4 on the
+    training contents at step 10,320 (most cells full), too small against the GAN term (~2.6) to move.
 
     Args:
         outputs: per supervised level, (B, 1, fX, fY, fZ) generator outputs in [0, 1].
@@ -187,7 +191,8 @@ def fill_floor_loss(outputs: Sequence[Tensor], coarse: Sequence[Tensor], floor: 
         if not bool(on.any()):
             continue
         mean = F.avg_pool3d(out.clamp(0, 1), out.shape[-1] // occ.shape[-1])
-        total = total + (F.relu(floor - mean) ** 2)[on].mean()
+        deficit = F.relu(floor - mean)[on]
+        total = total + (deficit**2).sum() / (deficit > 0).sum().clamp(min=1)
     return total
 
 

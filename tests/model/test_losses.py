@@ -210,6 +210,10 @@ def test_fill_floor_charges_only_occupied_cells_below_the_floor():
     loss.backward()
     assert (empty.grad[0, 0, :2] < 0).all() and (empty.grad[0, 0, 2:] == 0).all()  # pushes only the occupied cell up
     assert fill_floor_loss([out], [torch.zeros_like(occ)], 0.5).item() == 0
+    big = torch.ones(1, 1, 4, 1, 1)  # four occupied cells, one of them eroded: the full deficit, not a quarter of it
+    wide = torch.ones(1, 1, 8, 2, 2)
+    wide[0, 0, :2] = 0
+    assert fill_floor_loss([wide], [big], 0.5).item() == pytest.approx(0.25)
 
 
 def test_generator_adversarial_loss_adds_the_fill_floor_when_weighted():
