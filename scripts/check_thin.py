@@ -6,7 +6,8 @@
 For each content of those kinds, one output (every part in ``--style``): the occupied
 fraction of every occupied input cell's 16³ block (the worst cell, and the share of
 cells at ≥ 50 %), the output's extent along each axis against the input's (fine voxels;
-the worst ratio), Strict- and Loose-IOU (×16 max-pool against the input).
+the worst ratio), Strict- and Loose-IOU (×16 max-pool against the input), and the pieces the
+output adds (26-connected components of the output minus those of the input: loose cubes, specks).
 ``--min-cell-fill`` overrides the checkpoint's ``min_cell_fill`` (the inference
 projection of ``model/infer.py``), to see what it changes on the same weights.
 Acceptance (issue 15): every cell ≥ 50 % occupied and every extent within 5 %.
@@ -22,7 +23,7 @@ import numpy as np
 
 from evaluation.protocol import load_protocol
 from model.infer import DecollageDetailizer
-from model.monitor import cell_fill
+from model.monitor import cell_fill, pieces
 from core.grid import EMPTY, ISO_LEVEL, LabeledGrid
 
 
@@ -64,16 +65,17 @@ def main() -> None:
         pooled = out.reshape(x, f, y, f, z, f).any(axis=(1, 3, 5))
         ext = _extent(out) / (_extent(occ) * f) if out.any() else np.zeros(3)
         rows.append((cid, fills.min(), float(np.mean(fills >= 0.5)), float(np.abs(ext - 1).max()),
-                     (pooled & occ).sum() / (pooled | occ).sum(), (pooled & occ).sum() / occ.sum(), dt))
+                     (pooled & occ).sum() / (pooled | occ).sum(), (pooled & occ).sum() / occ.sum(),
+                     pieces(out) - pieces(occ), dt))
     print(f"checkpoint {det.checkpoint_path}, min_cell_fill {det.ckpt.config.min_cell_fill}, "
           f"thin only {det.ckpt.config.min_fill_thin_only}, style {a.style}")
-    print("| content | worst cell fill | cells ≥ 50 % | worst extent error | Strict | Loose | s |")
-    print("|---|---|---|---|---|---|---|")
-    for cid, fmin, half, ext, strict, loose, dt in rows:
-        print(f"| {cid} | {fmin:.3f} | {half:.3f} | {ext:.3f} | {strict:.3f} | {loose:.3f} | {dt:.1f} |")
-    arr = np.array([r[1:6] for r in rows], dtype=float)
+    print("| content | worst cell fill | cells ≥ 50 % | worst extent error | Strict | Loose | added pieces | s |")
+    print("|---|---|---|---|---|---|---|---|")
+    for cid, fmin, half, ext, strict, loose, added, dt in rows:
+        print(f"| {cid} | {fmin:.3f} | {half:.3f} | {ext:.3f} | {strict:.3f} | {loose:.3f} | {added} | {dt:.1f} |")
+    arr = np.array([r[1:7] for r in rows], dtype=float)
     print(f"| all {len(rows)} | {arr[:, 0].min():.3f} | {arr[:, 1].mean():.3f} | {arr[:, 2].max():.3f} | "
-          f"{arr[:, 3].mean():.3f} | {arr[:, 4].mean():.3f} | |")
+          f"{arr[:, 3].mean():.3f} | {arr[:, 4].mean():.3f} | {arr[:, 5].mean():.1f} mean | |")
 
 
 if __name__ == "__main__":

@@ -88,14 +88,18 @@ def test_config_reads_checkpoints_written_before_the_recipe_switches():
     data = _cfg().to_dict()
     for key in ("style_init_std", "output_mask", "min_cell_fill", "style_code_rms", "min_fill_thin_only"):
         data.pop(key)
-    data["losses"].pop("up_level_weights")
+    for key in ("up_level_weights", "gamma_fill", "fill_floor"):
+        data["losses"].pop(key)
     assert ModelConfig.from_dict(data) == _cfg()
     new = dataclasses.replace(_cfg(), style_init_std=0.5, output_mask=True, min_cell_fill=0.5,
                               style_code_rms=1.0, min_fill_thin_only=True,
-                              losses=dataclasses.replace(_cfg().losses, up_level_weights=(1, 1, 0.1, 0.1)))
+                              losses=dataclasses.replace(_cfg().losses, up_level_weights=(1, 1, 0.1, 0.1),
+                                                         gamma_fill=10.0, fill_floor=0.4))
     assert ModelConfig.from_dict(json.loads(json.dumps(new.to_dict()))) == new
     with pytest.raises(DetailizeError, match="min_cell_fill"):
         dataclasses.replace(_cfg(), min_cell_fill=1.5)
+    with pytest.raises(DetailizeError, match="fill_floor"):
+        dataclasses.replace(_cfg(), losses=dataclasses.replace(_cfg().losses, fill_floor=2.0))
 
 
 def test_min_fill_projection_grows_only_the_thin_cells():
