@@ -148,14 +148,10 @@ class LossConfig:
             before it, so at the fine levels it pulls towards the smoother grid; e.g.
             ``(1, 1, 0.1, 0.1)`` keeps it for structure at 32³/64³ and lowers it at
             128³/256³. L_down is not affected.
-        gamma_fill: weight of the cell-fill floor (``losses.fill_floor_loss``; 0 = off, the
-            paper's and the reference's losses). L_down's hinge is satisfied by one high voxel in
-            every 2³ block, so over four doublings an occupied coarse cell may keep as little as
-            one of its 16³ voxels: thin strokes and spires erode. The floor charges, at every
-            supervised level of the adversarial G step, each occupied coarse input cell whose
-            block's mean output lies below ``fill_floor``. Not applied to reconstruction steps
-            (the exemplars' own boundary cells may be less full).
-        fill_floor: the mean occupancy (in [0, 1]) an occupied coarse cell's block must keep.
+        gamma_fill, fill_floor: weight (0 = off, as in the paper) and level of the cell-fill floor
+            (``losses.fill_floor_loss``): in the adversarial G step, every occupied coarse cell whose
+            block's mean output is below ``fill_floor`` is charged (L_down is met by one voxel per 2³
+            block, so over four doublings a cell may keep one voxel of 16³: strokes erode).
     """
 
     beta_recon: float = 10.0
