@@ -187,9 +187,7 @@ def fill_floor_loss(outputs: Sequence[Tensor], coarse: Sequence[Tensor], floor: 
     """
     total = outputs[0].new_zeros(())
     for out, occ in zip(outputs, coarse):
-        on = occ.to(out.dtype) > 0.5
-        if not bool(on.any()):
-            continue
+        on = occ.to(out.dtype) > 0.5  # none occupied: an empty sum over a count clamped to 1, so 0
         mean = F.avg_pool3d(out.clamp(0, 1), out.shape[-1] // occ.shape[-1])
         deficit = F.relu(floor - mean)[on]
         total = total + (deficit**2).sum() / (deficit > 0).sum().clamp(min=1)
