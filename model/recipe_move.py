@@ -12,7 +12,7 @@ import dataclasses
 
 from model.checkpoint import Checkpoint
 from model.config import ModelConfig
-from model.recipes import BRANCHABLE_FIELDS, INFERENCE_ONLY_FIELDS, RECIPES, recipe_configs
+from model.recipes import BRANCHABLE_FIELDS, BRANCHABLE_TRAIN_FIELDS, INFERENCE_ONLY_FIELDS, RECIPES, recipe_configs
 from model.train import TrainConfig
 
 
@@ -25,8 +25,8 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
     its name. The training settings may also differ in how many reconstruction steps an
     iteration takes (``recon_steps_early``, ``recon_early_iters``) where that changes none of
     the iterations the state has done. With ``branch`` the recipes may also differ in
-    ``BRANCHABLE_FIELDS`` (the losses): the state then continues under the new recipe's losses
-    from its step on, which is a new run branched from the old one (its meta records
+    ``BRANCHABLE_FIELDS`` (the losses) and ``BRANCHABLE_TRAIN_FIELDS`` (distillation's share):
+    the state then continues under the new recipe's losses and targets from its step on, which is a new run branched from the old one (its meta records
     ``recipe_branched_from``), not the old run moved. Raises ValueError (unknown recipe, or the
     recipes train differently).
     """
@@ -40,14 +40,17 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
     differ = [f.name for f in dataclasses.fields(m_old) if getattr(m_old, f.name) != getattr(m_new, f.name)]
     step = int(ck.training.get("step", 0))
     allowed = (*INFERENCE_ONLY_FIELDS, *BRANCHABLE_FIELDS) if branch else INFERENCE_ONLY_FIELDS
-    if set(differ) - set(allowed) or not _same_history(t_old, t_new, step):
+    train_fields = (*_RECON_COUNT_FIELDS, *(BRANCHABLE_TRAIN_FIELDS if branch else ()))
+    if set(differ) - set(allowed) or not _same_history(t_old, t_new, step, train_fields):
         raise ValueError(f"recipes {old!r} and {name!r} train differently ({differ or 'TrainConfig'})")
     config = dataclasses.replace(ck.config, **{f: getattr(m_new, f) for f in allowed})
-    key = "recipe_branched_from" if branch and set(differ) & set(BRANCHABLE_FIELDS) else "recipe_moved_from"
+    branched = set(differ) & set(BRANCHABLE_FIELDS) or any(
+        getattr(t_old, f) != getattr(t_new, f) for f in BRANCHABLE_TRAIN_FIELDS)
+    key = "recipe_branched_from" if branch and branched else "recipe_moved_from"
     training = {**ck.training, "recipe": name, key: {"recipe": old, "step": step}}
     if isinstance(training.get("train_config"), dict):
         training["train_config"] = {**training["train_config"], "recipe": name,
-                                    **{f: getattr(t_new, f) for f in _RECON_COUNT_FIELDS}}
+                                    **{f: getattr(t_new, f) for f in train_fields}}
     return dataclasses.replace(ck, config=config, training=training)
 
 
@@ -55,9 +58,13 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
 _RECON_COUNT_FIELDS = ("recon_steps_early", "recon_early_iters")
 
 
-def _same_history(a: TrainConfig, b: TrainConfig, step: int) -> bool:
-    """Whether the first ``step`` iterations are the same under both settings."""
-    rest = {f: getattr(a, f) for f in _RECON_COUNT_FIELDS}
+def _same_history(a: TrainConfig, b: TrainConfig, step: int, free: tuple[str, ...] = _RECON_COUNT_FIELDS) -> bool:
+    """Whether the first ``step`` iterations are the same under both settings, ``free`` fields aside.
+
+    The reconstruction counts (always among ``free``) must still give every iteration before
+    ``step`` the same number of steps; other free fields (a branch's) only change what comes after.
+    """
+    rest = {f: getattr(a, f) for f in free}
     if dataclasses.replace(b, **rest) != a:
         return False
     return all(a.reconstruction_steps(it) == b.reconstruction_steps(it) for it in range(step))

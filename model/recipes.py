@@ -48,6 +48,13 @@ a resume must name the same one.
   48 % of text/CAD cells half full at 10,320 iterations), because L_down is met by one voxel
   per 2³ block. Training differs only in that loss, so a ``warmup_centred_long_r1`` state can
   branch into it (``scripts/rerecipe_state.py --branch``).
+- ``warmup_centred_long_r1_fill_distill``: ``warmup_centred_long_r1_fill`` with ``distill``'s
+  targets (``DISTILL_FRAC`` of the reconstruction steps on quilt's output for an augmented content,
+  a random style per part; the discriminators then also see quilt's output as a real shape). At
+  11,750 iterations the fill run's outputs in two styles overlap 0.88 and its style specificity is
+  −0.089: nothing in its losses asks a new shape to look like one style rather than another.
+  Training differs only in ``distill_frac`` (``BRANCHABLE_TRAIN_FIELDS``), so a fill state can
+  branch into it.
 - ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
   target the example-based ``quilt`` detailizer's output on an augmented training content
   (new shapes, a random style per part) instead of an exemplar as itself
@@ -133,6 +140,14 @@ INFERENCE_ONLY_FIELDS = ("min_cell_fill", "min_fill_thin_only")
 #: ModelConfig fields that set only what the steps are charged, not the weights' layout: a state may *branch* into a
 #: recipe that differs in them too (it continues under the new losses from its step on).
 BRANCHABLE_FIELDS = ("losses",)
+#: TrainConfig fields that set only which targets the reconstruction steps draw from now on: a state may branch
+#: into a recipe that differs in them too.
+BRANCHABLE_TRAIN_FIELDS = ("distill_frac",)
+
+
+def _warmup_centred_long_r1_fill_distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill(m, t)
+    return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
 
 
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
@@ -158,6 +173,8 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
                                _warmup_centred_long_r1),
     "warmup_centred_long_r1_fill": ("warmup_centred_long_r1 with the cell-fill floor (γ_fill 10, floor 0.5) in the "
                                     "adversarial G step", _warmup_centred_long_r1_fill),
+    "warmup_centred_long_r1_fill_distill": ("warmup_centred_long_r1_fill with half the reconstruction targets made "
+                                            "by quilt on augmented contents", _warmup_centred_long_r1_fill_distill),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

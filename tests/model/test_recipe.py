@@ -17,7 +17,7 @@ from model.infer import min_fill_projection
 from model.losses import structure_losses, whole_shape_prevs
 from model.monitor import Monitor, cell_fill
 from model.networks import Generator
-from model.train import Trainer, train
+from model.train import TrainConfig, Trainer, train
 from model.windows import window_forward, windows_forward
 from core.errors import DetailizeError
 from tests.model.test_train import EXS, _cfg, _log, _tcfg
@@ -389,3 +389,29 @@ def test_extra_parts_counts_the_pieces_an_output_adds_to_its_input():
     torch.manual_seed(0)
     fig = Monitor(EXS, cfg, _tcfg(Path("x"), 1).augment()).figures(Generator(cfg))
     assert fig["extra_parts"] == 0.0  # every occupied cell filled whole: the input's pieces exactly
+
+
+def test_a_fill_state_branches_into_distillation_and_keeps_its_history(tmp_path):
+    from model.recipe_move import move_state_recipe
+    from model.recipes import DISTILL_FRAC, recipe_configs
+
+    name = "warmup_centred_long_r1_fill"
+    cfg_f, t_f = recipe_configs(name, _cfg(), _tcfg(tmp_path, 1, recipe=name))
+    cfg_d, t_d = recipe_configs(name + "_distill", _cfg(), _tcfg(tmp_path, 1, recipe=name + "_distill"))
+    assert cfg_d == cfg_f and t_f.distill_frac == 0 and t_d.distill_frac == DISTILL_FRAC
+    assert dataclasses.replace(t_d, distill_frac=0.0, recipe=name) == t_f  # nothing else differs
+    res = train(EXS, cfg_f, dataclasses.replace(t_f, warmup_iters=0), resume=False)
+    ck = load_checkpoint(res.checkpoint, training_state=True)
+    state = dataclasses.replace(ck, training={**ck.training, "step": 11750})
+    with pytest.raises(ValueError, match="train differently"):  # other targets are a branch, not a move
+        move_state_recipe(state, name + "_distill")
+    branched = move_state_recipe(state, name + "_distill", branch=True)
+    assert branched.training["train_config"]["distill_frac"] == DISTILL_FRAC
+    assert branched.training["recipe_branched_from"] == {"recipe": name, "step": 11750}
+    assert branched.config == ck.config
+    # the recorded settings restore a trainer that draws distilled steps from the branch's step on
+    recorded = dict(branched.training["train_config"], out_dir=str(tmp_path / "b"), betas=tuple(t_f.betas))
+    trainer = Trainer(EXS, branched.config, TrainConfig(**recorded))
+    assert trainer.teacher is not None
+    with pytest.raises(ValueError, match="train differently"):  # and it does not reach back into other histories
+        move_state_recipe(state, "distill", branch=True)
