@@ -243,6 +243,7 @@ class Trainer:
         self.exemplars, self.cfg, self.tcfg, self.aug = list(exemplars), cfg, tcfg, tcfg.augment()
         # distillation's quilt over the run's set (teacher_set: its StyleSet; None: made from the exemplars)
         self.teacher = QuiltTeacher(self.exemplars, teacher_set) if tcfg.distill_frac > 0 else None
+        self.teacher_set = teacher_set  # the prefetcher's workers build their own teacher from it
         self.part_aliases = dict(part_aliases or {})
         self.style_set: dict | None = None  # the set's provenance record, stored in checkpoints
         self.device = resolve_device(tcfg.device)
@@ -316,9 +317,18 @@ class Trainer:
         """
         t = self.tcfg
         if self.teacher is not None and is_distilled(t.seed, it, r, t.distill_frac):
+            if self.prefetch is not None:  # made ahead by the workers (the same sample)
+                return self.prefetch.distilled(it, r), True
             return distill_sample(self.teacher, self.cfg, self.aug, t.seed, it, r), True
         style = int(rng_for(t.seed, it, 100 + r).integers(self.cfg.n_styles))
         return self.style_sample(style, it * 8 + r), False
+
+    def distilled_steps(self, it: int) -> list[int]:
+        """The reconstruction steps r of iteration ``it`` that are distilled ones (none without distillation)."""
+        t = self.tcfg
+        if self.teacher is None:
+            return []
+        return [r for r in range(t.reconstruction_steps(it)) if is_distilled(t.seed, it, r, t.distill_frac)]
 
     def style_sample(self, style: int, draw: int) -> Sample:
         """``model.data.style_sample`` of ``style`` for draw index ``draw`` (it·8 + r).
@@ -342,7 +352,9 @@ class Trainer:
         t = self.tcfg
         if not t.data_workers or t.steps <= max(self.step, t.warmup_iters):
             return
-        self.prefetch = ContentPrefetcher(self.exemplars, self.cfg, self.aug, t.seed, t.data_workers)
+        distilled = None if self.teacher is None else self.distilled_steps
+        self.prefetch = ContentPrefetcher(self.exemplars, self.cfg, self.aug, t.seed, t.data_workers,
+                                          distilled_steps=distilled, teacher_set=self.teacher_set)
         if self.aug.style_offset is not None:
             styles = range(len(self.exemplars))
             self._fixed_styles.update(zip(styles, self.prefetch.style_samples(styles)))

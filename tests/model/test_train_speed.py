@@ -64,3 +64,37 @@ def test_a_run_with_data_workers_logs_the_same_losses(tmp_path):
     assert [r["step"] for r in logs[1]] == [1, 2, 3]
     for a, b in zip(*logs):
         assert {k: a[k] for k in LOSS_KEYS} == {k: b[k] for k in LOSS_KEYS}
+
+
+def test_distilled_samples_made_by_the_workers_are_the_trainers_own(tmp_path):
+    from model.distill import distill_sample, is_distilled
+
+    tr = Trainer(EXS, _cfg(), _tcfg(tmp_path, 6, distill_frac=0.5, data_workers=1, warmup_iters=0,
+                                    recon_steps_early=2, recon_early_iters=6))
+    assert tr.distilled_steps(2) == [r for r in range(2) if is_distilled(3, 2, r, 0.5)]
+    tr.start_workers()
+    try:
+        assert tr.prefetch is not None
+        seen = 0
+        for it in range(4):
+            tr.adversarial_content(it)  # queues the distilled samples of the iterations ahead
+            for r in tr.distilled_steps(it):
+                made = tr.reconstruction_sample(it, r)[0]
+                ref = distill_sample(tr.teacher, tr.cfg, tr.aug, 3, it, r)
+                np.testing.assert_array_equal(made.fine_labels, ref.fine_labels)
+                np.testing.assert_array_equal(made.coarse_labels, ref.coarse_labels)
+                seen += 1
+        assert seen > 0  # the draw exercised at least one distilled step
+    finally:
+        tr.prefetch.close()
+    assert Trainer(EXS, _cfg(), _tcfg(tmp_path, 1)).distilled_steps(0) == []
+
+
+def test_a_distilled_run_with_data_workers_logs_the_same_losses(tmp_path):
+    logs = []
+    for workers in (0, 1):
+        kw = dict(data_workers=workers, distill_frac=1.0, warmup_iters=0, recon_steps_early=1)
+        logs.append(_log(train(EXS, _cfg(), _tcfg(tmp_path / str(workers), 2, **kw), resume=False).log))
+    assert [r["distilled"] for r in logs[1]] == [1.0, 1.0]
+    for a, b in zip(*logs):
+        assert {k: a[k] for k in LOSS_KEYS} == {k: b[k] for k in LOSS_KEYS}
