@@ -10,6 +10,8 @@
 # setting from last.pt) up to STEPS or for MINUTES, whichever comes first, saving last.pt every 500
 # iterations and at the end; the adversarial contents are made ahead by DATA_WORKERS (default 6)
 # processes per run, the monitor's figures logged every MONITOR_EVERY (default 500) iterations.
+# A distilling run (distill_frac > 0, e.g. warmup_centred_long_r1_fill_distill) has its workers make the
+# distilled samples too (quilt on augmented contents, 0.5-0.9 s of CPU each): give it DATA_WORKERS >= 8.
 # When $OUT is set (the device tool), each run's last.pt, log.jsonl, gpu_session.log and
 # gpu_timing.txt (time per iteration and per 16³ → 256³ shape on the GPU) go to $OUT/<run name>/:
 # eight files for two runs, the tool's limit.
