@@ -11,8 +11,9 @@ Inference mirrors the training crops (``model/data.py``): the generator runs onc
 side (padded with empty cells where the box touches the grid border), with part
 and style labels of empty cells copied from the nearest occupied cell; the output
 is cut back to the grid, and fine voxels outside that crop — more than one coarse
-cell away from any occupied cell — are empty (0). A model whose config sets
-``min_cell_fill`` then gets ``min_fill_projection`` (thin parts cannot vanish). Styles in the output are the input's style
+cell away from any occupied cell — are empty (0). Specks (pieces of at most
+``SPECK_VOXELS`` fine voxels) are then removed (``remove_specks``), and a model whose config sets
+``min_cell_fill`` gets ``min_fill_projection`` (thin parts cannot vanish). Styles in the output are the input's style
 indices (into ``grid.style_names``), nearest-upsampled to every fine voxel.
 
 Performance (CPU): weights in ``channels_last_3d``, ``torch.inference_mode``, and
@@ -61,6 +62,11 @@ MARGIN = 1
 DENSE_MAX_CELLS = 24**3
 #: Block edge in coarse cells for large crops (256³ fine voxels a block).
 BLOCK_CELLS = 16
+#: Pieces of the output (26-connected voxels above ``ISO_LEVEL``) of at most this many fine voxels are removed
+#: (``remove_specks``): the learned model leaves specks of 1–8 voxels beside its surface (the thin check counted
+#: 18–60 a shape, 0.01 % of the output), which become floating triangles in a game mesh. At most the factor, so
+#: that a column range decides its specks exactly with one coarse column of halo; 0 keeps them.
+SPECK_VOXELS = 16
 #: Levels a column-wise run (``column_detailizer``) computes on the whole crop before the columns (2: the 32³
 #: and 64³ levels, a one-cell halo): the fine levels, most of the work, run on the columns asked for alone.
 COLUMN_WHOLE_LEVELS = 2
@@ -152,6 +158,63 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
     return fine
 
 
+def remove_specks(fine: np.ndarray, occupancy: np.ndarray, factor: int, max_voxels: int = SPECK_VOXELS,
+                  iso: float = ISO_LEVEL) -> int:
+    """Zero every speck: a 26-connected piece of ``fine > iso`` of at most ``max_voxels`` voxels.
+
+    A speck that is the only material of an occupied coarse cell it touches is kept (the cell stays
+    occupied: Strict-IOU cannot fall). Runs before ``min_fill_projection``, so the fill floor still holds.
+
+    Args:
+        fine: (f·X, f·Y, f·Z) float32 field; modified in place.
+        occupancy: (X, Y, Z) bool coarse cells.
+        factor: f, fine voxels per coarse cell edge.
+        max_voxels: the largest speck, voxels; 0 removes nothing.
+    Returns:
+        the number of specks removed.
+    """
+    import cc3d
+
+    if max_voxels <= 0:
+        return 0
+    binary = fine > iso
+    labels = cc3d.connected_components(binary.view(np.uint8), connectivity=26)
+    sizes = np.bincount(labels.ravel())
+    small = sizes <= max_voxels
+    small[0] = False  # the background
+    if not small.any():
+        return 0
+    speck = small[labels]
+    comp = labels[speck]
+    where = np.argwhere(speck)
+    cells = where // factor
+    cell_id = np.ravel_multi_index(cells.T, occupancy.shape)
+    material = pool_blocks(binary, factor, np.add, dtype=np.int32).ravel()
+    pairs, in_cell = np.unique(np.stack([comp, cell_id]), axis=1, return_counts=True)
+    sole = occupancy.ravel()[pairs[1]] & (material[pairs[1]] <= in_cell)  # the cell has nothing else
+    keep = np.unique(pairs[0][sole])
+    drop = ~np.isin(comp, keep)
+    fine[tuple(where[drop].T)] = 0.0
+    return int(len(np.unique(comp[drop])))
+
+
+def despeckled_columns(field: Callable[[int, int], np.ndarray], occupancy: np.ndarray, start: int, stop: int,
+                       factor: int, max_voxels: int) -> np.ndarray:
+    """Columns [start, stop) of the field with ``remove_specks`` applied as on the whole grid.
+
+    ``field(lo, hi)`` gives the (f·(hi − lo), f·Y, f·Z) field of columns [lo, hi). One column of halo each side
+    decides the specks exactly (``max_voxels`` ≤ f): a speck that reaches into [start, stop) lies within one
+    column of it, and a piece that reaches the halo's far side from inside has more than f voxels.
+    """
+    if max_voxels > factor:
+        raise ValueError(f"max_voxels {max_voxels} > factor {factor}: one column of halo would not decide it")
+    halo = int(max_voxels > 0)
+    lo, hi = max(start - halo, 0), min(stop + halo, occupancy.shape[0])
+    fine = field(lo, hi)
+    remove_specks(fine, occupancy[lo:hi], factor, max_voxels)
+    return np.ascontiguousarray(fine[(start - lo) * factor:(stop - lo) * factor])
+
+
 def cpu_threads() -> int:
     """Threads for CPU inference: every core, but never more than ``OMP_NUM_THREADS`` when it is set."""
     n = os.cpu_count() or 1
@@ -168,6 +231,8 @@ class DecollageDetailizer:
         checkpoint: path of a checkpoint file, or None for the shipped model
             (``DEFAULT_CHECKPOINT``).
         device: a ``Device`` or its value, or ``"cuda:N"`` (``resolve_device``).
+        speck_voxels: pieces of the output this small (fine voxels) are removed (``remove_specks``); 0 keeps
+            them. At most the model's factor.
     Raises:
         DetailizeError: no shipped model, bad checkpoint, unavailable device.
     """
@@ -175,7 +240,8 @@ class DecollageDetailizer:
     name = "decollage"
     learned = True
 
-    def __init__(self, checkpoint: str | Path | None = None, device: Device | str = Device.AUTO) -> None:
+    def __init__(self, checkpoint: str | Path | None = None, device: Device | str = Device.AUTO,
+                 speck_voxels: int = SPECK_VOXELS) -> None:
         import torch
 
         # model.networks is torch itself: imported here so that this module stays light
@@ -196,6 +262,10 @@ class DecollageDetailizer:
         self.device = resolve_device(device)
         ckpt: Checkpoint = load_checkpoint(self.checkpoint_path)
         self.ckpt = ckpt
+        if not 0 <= speck_voxels <= ckpt.config.factor:
+            raise DetailizeError(f"speck_voxels must be in [0, {ckpt.config.factor}], got {speck_voxels}",
+                                 field="speck_voxels", hint="0 keeps every piece; the factor removes the most")
+        self.speck_voxels = int(speck_voxels)
         self.style_names: tuple[str, ...] | None = ckpt.style_names
         # Accepted part names: the vocabulary, then its aliases (a building's "roof" is the set's "top").
         self.part_names: tuple[str, ...] | None = tuple(ckpt.part_index())
@@ -220,6 +290,7 @@ class DecollageDetailizer:
             "format_version": FORMAT_VERSION,
             "device": str(self.device),
             "factor": cfg.factor,
+            "speck_voxels": self.speck_voxels,
             "generator_params": sum(p.numel() for p in self.generator.parameters()),
             "style_names": list(self.ckpt.style_names),
             "part_names": list(self.ckpt.part_names),
@@ -294,7 +365,8 @@ class DecollageDetailizer:
                 torch.manual_seed(int(seed))
                 trunk = TrunkFeatures.run(self.generator, *crop.inputs(self.generator), COLUMN_WHOLE_LEVELS)
 
-        def columns(start: int, stop: int) -> FineGrid:
+        def field(start: int, stop: int) -> np.ndarray:
+            """The generator's field of columns [start, stop), before the specks and the projection."""
             fine = np.zeros(((stop - start) * f, occ.shape[1] * f, occ.shape[2] * f), dtype=np.float32)
             first, last = (max(start, crop.src[0].start), min(stop, crop.src[0].stop)) if crop else (0, 0)
             if first < last:
@@ -307,6 +379,10 @@ class DecollageDetailizer:
                     out = out[:, crop.inside(1, f), crop.inside(2, f)].float().clamp_(0.0, 1.0).cpu().numpy()
                 fine[(first - start) * f:(last - start) * f, crop.src[1].start * f:crop.src[1].stop * f,
                      crop.src[2].start * f:crop.src[2].stop * f] = out
+            return fine
+
+        def columns(start: int, stop: int) -> FineGrid:
+            fine = despeckled_columns(field, occ, start, stop, f, self.speck_voxels)
             min_fill_projection(fine, occ[start:stop], f, cfg.min_cell_fill, thin_only=cfg.min_fill_thin_only,
                                 thin=thin[start:stop])
             origin = (grid.origin_m[0] + start * grid.voxel_size_m, *grid.origin_m[1:])
@@ -368,6 +444,7 @@ class DecollageDetailizer:
         fine = np.zeros(tuple(n * f for n in occ.shape), dtype=np.float32)
         fine[tuple(slice(s.start * f, s.stop * f) for s in crop.src)] = cropped
         cfg = self.ckpt.config
+        remove_specks(fine, occ, f, self.speck_voxels)
         return min_fill_projection(fine, occ, f, cfg.min_cell_fill, thin_only=cfg.min_fill_thin_only)
 
 

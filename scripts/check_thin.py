@@ -1,7 +1,7 @@
 """Do thin features survive? Issue 15's check on the protocol's texts and CAD contents.
 
     .venv/bin/python scripts/check_thin.py [--checkpoint model/weights/things.pt] [--min-cell-fill 0.5] [--thin-only]
-                                           [--kinds text,cad] [--style cottage]
+                                           [--kinds text,cad] [--style cottage] [--speck-voxels 16]
 
 For each content of those kinds, one output (every part in ``--style``): the occupied
 fraction of every occupied input cell's 16³ block (the worst cell, and the share of
@@ -9,7 +9,8 @@ cells at ≥ 50 %), the output's extent along each axis against the input's (fin
 the worst ratio), Strict- and Loose-IOU (×16 max-pool against the input), and the pieces the
 output adds (26-connected components of the output minus those of the input: loose cubes, specks).
 ``--min-cell-fill`` overrides the checkpoint's ``min_cell_fill`` (the inference
-projection of ``model/infer.py``), to see what it changes on the same weights.
+projection of ``model/infer.py``), to see what it changes on the same weights; ``--speck-voxels``
+the size of the specks inference removes (0 keeps them; default ``model.infer.SPECK_VOXELS``).
 Acceptance (issue 15): every cell ≥ 50 % occupied and every extent within 5 %.
 """
 
@@ -22,7 +23,7 @@ import time
 import numpy as np
 
 from evaluation.protocol import load_protocol
-from model.infer import DecollageDetailizer
+from model.infer import SPECK_VOXELS, DecollageDetailizer
 from model.monitor import cell_fill, pieces
 from core.grid import EMPTY, ISO_LEVEL, LabeledGrid
 
@@ -38,9 +39,10 @@ def main() -> None:
     ap.add_argument("--min-cell-fill", type=float, default=None)
     ap.add_argument("--kinds", default="text,cad")
     ap.add_argument("--style", default="cottage")
+    ap.add_argument("--speck-voxels", type=int, default=SPECK_VOXELS)
     ap.add_argument("--thin-only", action="store_true", help="project one-cell-thick cells only (min_fill_thin_only)")
     a = ap.parse_args()
-    det = DecollageDetailizer(a.checkpoint, device="cpu")
+    det = DecollageDetailizer(a.checkpoint, device="cpu", speck_voxels=a.speck_voxels)
     if a.min_cell_fill is not None:
         det.ckpt = dataclasses.replace(det.ckpt, config=dataclasses.replace(det.ckpt.config,
                                                                           min_cell_fill=a.min_cell_fill))
@@ -67,7 +69,8 @@ def main() -> None:
         rows.append((cid, fills.min(), float(np.mean(fills >= 0.5)), float(np.abs(ext - 1).max()),
                      (pooled & occ).sum() / (pooled | occ).sum(), (pooled & occ).sum() / occ.sum(),
                      pieces(out) - pieces(occ), dt))
-    print(f"checkpoint {det.checkpoint_path}, min_cell_fill {det.ckpt.config.min_cell_fill}, "
+    print(f"checkpoint {det.checkpoint_path}, specks ≤ {det.speck_voxels} voxels removed, "
+          f"min_cell_fill {det.ckpt.config.min_cell_fill}, "
           f"thin only {det.ckpt.config.min_fill_thin_only}, style {a.style}")
     print("| content | worst cell fill | cells ≥ 50 % | worst extent error | Strict | Loose | added pieces | s |")
     print("|---|---|---|---|---|---|---|---|")

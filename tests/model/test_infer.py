@@ -12,7 +12,7 @@ import torch
 from model.checkpoint import Checkpoint, save_checkpoint
 from model.config import ModelConfig
 from model.masks import fill_nearest
-from model.infer import DEFAULT_CHECKPOINT, DecollageDetailizer, resolve_device
+from model.infer import DEFAULT_CHECKPOINT, DecollageDetailizer, despeckled_columns, remove_specks, resolve_device
 from model.networks import Generator
 from core import detailizer as pipeline_detailize
 from core.errors import DetailizeError
@@ -121,7 +121,7 @@ def test_deterministic_and_describe(ckpt_path):
 
 def test_output_is_generator_on_bbox_plus_margin(ckpt_path):
     """The output is the generator run on the occupied box + 1 empty cell, cut to the grid, 0 elsewhere."""
-    det = DecollageDetailizer(ckpt_path, device="cpu")
+    det = DecollageDetailizer(ckpt_path, device="cpu", speck_voxels=0)  # the raw field: no speck removed
     g = _grid((4, 3, 5))  # occupied: x 0..2, y 0..1, z 0..4
     fine = det.detailize(g)
     # box + margin: x [-1, 4), y [-1, 3), z [-1, 6): one empty cell added outside the grid where the box touches it
@@ -137,6 +137,69 @@ def test_output_is_generator_on_bbox_plus_margin(ckpt_path):
         ins = gen.make_inputs(torch.from_numpy(occ)[None], torch.from_numpy(part)[None], torch.from_numpy(style)[None])
         ref = gen(*ins)[-1][0, 0].clamp(0, 1).numpy()
     np.testing.assert_allclose(fine.occupancy, ref[16:, 16:, 16:-16], atol=1e-5)
+
+
+def test_specks_go_unless_a_cell_has_nothing_else():
+    """Pieces of ≤ max voxels go; a bigger piece stays, and so does a speck that alone occupies its cell."""
+    f = 4
+    occ = np.zeros((3, 2, 2), dtype=bool)
+    occ[0, 0, 0] = occ[1, 0, 0] = occ[2, 1, 1] = True
+    fine = np.zeros((12, 8, 8), dtype=np.float32)
+    fine[0:8, 0:2, 0:2] = 0.9  # the body across cells (0,0,0) and (1,0,0): 32 voxels
+    fine[1, 3, 3] = 0.8  # a 1-voxel speck in cell (0,0,0), which also holds the body: goes
+    fine[6, 5, 5:7] = 0.7  # a 2-voxel speck in the empty cell (1,1,1): goes
+    fine[9, 5, 5] = 0.6  # the only material of the occupied cell (2,1,1): stays
+    fine[4:6, 6:8, 0:2] = 0.9  # 8 voxels, one more than the limit: stays
+    fine[3, 3, 0] = 0.3  # below the iso level: not material, untouched
+    before = fine.copy()
+    assert remove_specks(fine, occ, f, max_voxels=7) == 2
+    assert fine[1, 3, 3] == 0 and fine[6, 5, 5:7].max() == 0
+    changed = fine != before
+    assert changed.sum() == 3  # the two specks' voxels alone
+    assert fine[9, 5, 5] == 0.6 and fine[4:6, 6:8, 0:2].min() == np.float32(0.9) and fine[3, 3, 0] == np.float32(0.3)
+    assert remove_specks(fine, occ, f, max_voxels=0) == 0  # 0 keeps every piece
+    # a speck touching the body diagonally (26-connected) is part of it
+    touching = np.zeros_like(before)
+    touching[0:8, 0:2, 0:2] = 0.9
+    touching[8, 2, 2] = 0.9
+    assert remove_specks(touching, occ, f, max_voxels=7) == 0 and touching[8, 2, 2] == np.float32(0.9)
+
+
+def test_column_ranges_judge_specks_as_the_whole_grid():
+    """A piece cut by a column boundary is judged whole: 3 + 3 voxels across the cut stay, 1 + 1 go."""
+    f = 4
+    occ = np.zeros((4, 2, 2), dtype=bool)
+    occ[:, 0, 0] = True
+    whole = np.zeros((16, 8, 8), dtype=np.float32)
+    whole[:, 0:2, 0:2] = 0.9  # the body along x
+    whole[5:11, 5, 5] = 0.8  # 6 voxels across the cut at column 2 (fine x 8), 3 a side: more than the limit
+    whole[7:9, 7, 0] = 0.8  # 2 voxels across the cut: a speck
+    whole[1, 7, 7] = 0.7  # a speck in the first column, away from the cut
+    ref = whole.copy()
+    assert remove_specks(ref, occ, f, max_voxels=f) == 2
+    def field(lo, hi):
+        return whole[lo * f:hi * f].copy()
+    for cut in (1, 2, 3):
+        joined = np.concatenate([despeckled_columns(field, occ, 0, cut, f, f),
+                                 despeckled_columns(field, occ, cut, 4, f, f)])
+        assert np.array_equal(joined, ref), cut
+    with pytest.raises(ValueError, match="one column of halo"):
+        despeckled_columns(field, occ, 0, 2, f, f + 1)
+
+
+def test_the_detailizer_removes_specks_and_refuses_a_limit_above_the_factor(ckpt_path):
+    g = _grid((4, 3, 5))
+    raw = DecollageDetailizer(ckpt_path, device="cpu", speck_voxels=0).detailize(g).occupancy
+    det = DecollageDetailizer(ckpt_path, device="cpu")  # the default limit
+    clean = det.detailize(g).occupancy
+    assert det.describe()["speck_voxels"] == 16
+    removed = (raw > ISO_LEVEL) & ~(clean > ISO_LEVEL)
+    assert removed.any() and np.array_equal(clean[~removed], raw[~removed])  # the random model leaves specks
+    assert remove_specks(clean.copy(), g.occupancy, 16) == 0  # none left
+    # every occupied cell keeps material (the Strict-IOU guarantee)
+    assert (clean > ISO_LEVEL).reshape(4, 16, 3, 16, 5, 16).any(axis=(1, 3, 5))[g.occupancy].all()
+    with pytest.raises(DetailizeError, match=r"speck_voxels must be in \[0, 16\]"):
+        DecollageDetailizer(ckpt_path, device="cpu", speck_voxels=17)
 
 
 def test_field_is_empty_far_from_the_shape(ckpt_path):
@@ -215,13 +278,14 @@ def _long_grid() -> LabeledGrid:
 
 
 @pytest.mark.parametrize("blockwise", [False, True])
-def test_column_parts_join_into_the_whole_field(ckpt_path, monkeypatch, blockwise):
+@pytest.mark.parametrize("specks", [16, 0])
+def test_column_parts_join_into_the_whole_field(ckpt_path, monkeypatch, blockwise, specks):
     import model.infer as infer
 
     if blockwise:  # the columns' fine levels run in 2-cell blocks
         monkeypatch.setattr(infer, "DENSE_MAX_CELLS", 0)
         monkeypatch.setattr(infer, "BLOCK_CELLS", 2)
-    det = DecollageDetailizer(ckpt_path, device="cpu")
+    det = DecollageDetailizer(ckpt_path, device="cpu", speck_voxels=specks)
     g = _long_grid()
     whole = det.detailize(g, seed=3)
     columns = det.column_detailizer(g, seed=3)
