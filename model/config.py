@@ -233,7 +233,7 @@ class ModelConfig:
             0.4 iso level) gets the smallest uniform raise of its field that brings it to
             this fraction, so strokes, spires and limbs one cell wide cannot vanish. 0 = off.
         min_fill_thin_only: the projection raises to ``min_cell_fill`` only the input's cells one
-            cell thick along some axis (``model.infer.thin_cells``), every other occupied cell to a
+            cell thick along some axis (``model.finish.thin_cells``), every other occupied cell to a
             single voxel (Strict-IOU stays 1), not the boundary cells of thicker parts: an
             exemplar's own boundary cells are mostly under half full, and raising them all caps
             self-reconstruction (``scripts/selfrec_ceiling.py``: a generator that fits its targets

@@ -11,10 +11,10 @@ Inference mirrors the training crops (``model/data.py``): the generator runs onc
 side (padded with empty cells where the box touches the grid border), with part
 and style labels of empty cells copied from the nearest occupied cell; the output
 is cut back to the grid, and fine voxels outside that crop — more than one coarse
-cell away from any occupied cell — are empty (0). Specks (pieces of at most
-``SPECK_VOXELS`` fine voxels) are then removed (``remove_specks``), and a model whose config sets
-``min_cell_fill`` gets ``min_fill_projection`` (thin parts cannot vanish). Styles in the output are the input's style
-indices (into ``grid.style_names``), nearest-upsampled to every fine voxel.
+cell away from any occupied cell — are empty (0). Then ``model.finish``: specks (pieces of at
+most ``speck_voxels`` fine voxels) are removed, and a model whose config sets ``min_cell_fill`` gets its
+fill floor (thin parts cannot vanish). Styles in the output are the input's style indices (into
+``grid.style_names``), nearest-upsampled to every fine voxel.
 
 Performance (CPU): weights in ``channels_last_3d``, ``torch.inference_mode``, and
 all cores (``os.cpu_count()``, capped by ``OMP_NUM_THREADS`` when that is set).
@@ -42,13 +42,14 @@ from pathlib import Path
 import numpy as np
 
 from model.checkpoint import FORMAT_VERSION, Checkpoint, load_checkpoint
+from model.finish import SPECK_VOXELS, finish, finish_columns, thin_cells
 from model.masks import fill_nearest
 from model.provenance import checkpoint_style_set, exemplar_extras
 from model.upsample import fill_styles_everywhere, nearest_upsample
 from model.windows import TrunkFeatures, blockwise_forward
 from core.detailizer import requested_threads
 from core.errors import DetailizeError
-from core.grid import ISO_LEVEL, FineGrid, LabeledGrid, pool_blocks
+from core.grid import FineGrid, LabeledGrid
 from core.recipe import Device
 
 #: The shipped model, used when no checkpoint is given.
@@ -62,11 +63,6 @@ MARGIN = 1
 DENSE_MAX_CELLS = 24**3
 #: Block edge in coarse cells for large crops (256³ fine voxels a block).
 BLOCK_CELLS = 16
-#: Pieces of the output (26-connected voxels above ``ISO_LEVEL``) of at most this many fine voxels are removed
-#: (``remove_specks``): the learned model leaves specks of 1–8 voxels beside its surface (the thin check counted
-#: 18–60 a shape, 0.01 % of the output), which become floating triangles in a game mesh. At most the factor, so
-#: that a column range decides its specks exactly with one coarse column of halo; 0 keeps them.
-SPECK_VOXELS = 16
 #: Levels a column-wise run (``column_detailizer``) computes on the whole crop before the columns (2: the 32³
 #: and 64³ levels, a one-cell halo): the fine levels, most of the work, run on the columns asked for alone.
 COLUMN_WHOLE_LEVELS = 2
@@ -99,122 +95,6 @@ def resolve_device(device: Device | str) -> "torch.device":  # noqa: F821 - torc
     return torch.device(text)
 
 
-def thin_cells(occupancy: np.ndarray) -> np.ndarray:
-    """Occupied coarse cells one cell thick along some axis (both neighbours on that axis empty): (X, Y, Z) bool.
-
-    These are the cells of strokes, spires and limbs one cell wide; a cell on the boundary of
-    a thicker part has an occupied neighbour inward along every axis and is not one of them.
-    """
-    occ = np.pad(occupancy.astype(bool), 1)
-    thin = np.zeros(occupancy.shape, dtype=bool)
-    core = occ[1:-1, 1:-1, 1:-1]
-    for axis in range(3):
-        before = np.take(occ, range(0, occ.shape[axis] - 2), axis=axis)
-        after = np.take(occ, range(2, occ.shape[axis]), axis=axis)
-        sl = [slice(1, -1)] * 3
-        sl[axis] = slice(None)
-        thin |= ~before[tuple(sl)] & ~after[tuple(sl)]
-    return thin & core
-
-
-def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, min_fill: float,
-                        iso: float = ISO_LEVEL, thin_only: bool = False, thin: np.ndarray | None = None) -> np.ndarray:
-    """Raise the field of every occupied coarse cell whose block is less than ``min_fill`` occupied.
-
-    For such a cell, the field of its ``factor``³ block is raised uniformly by the
-    smallest amount (+1e-4) that puts ``ceil(min_fill · factor³)`` of its voxels above
-    ``iso``, and clipped to 1: the block keeps the generator's own shape, only grown
-    (a block the generator left empty becomes a solid block). Other cells are untouched.
-    So every occupied input cell is at least ``min_fill`` occupied in the output, and a
-    stroke or spire one coarse cell wide cannot vanish.
-
-    Args:
-        fine: (f·X, f·Y, f·Z) float32 field in [0, 1]; modified in place and returned.
-        occupancy: (X, Y, Z) bool coarse cells.
-        thin_only: raise only the ``thin_cells`` of the input (one cell thick along some
-            axis) to ``min_fill``; every other occupied cell only to one voxel above ``iso``
-            (its highest; so Strict-IOU stays 1), leaving the boundary cells of thicker parts as the
-            generator made them.
-        thin: (X, Y, Z) bool, the ``thin_cells`` to use instead of those of ``occupancy`` (columns cut from a
-            larger grid: a cell on the cut is thin or not by its neighbours in the whole grid).
-    """
-    if min_fill <= 0 or not occupancy.any():
-        return fine
-    x, y, z = occupancy.shape
-    f, n = factor, factor**3
-    k = int(np.ceil(min_fill * n))
-    above = pool_blocks(fine > iso, f, np.add, dtype=np.int32)
-    need = np.where(thin_cells(occupancy) if thin is None else thin, k, 1) if thin_only else np.full(occupancy.shape, k)
-    for cx, cy, cz in np.argwhere(occupancy & (above < need)):
-        kc = int(need[cx, cy, cz])
-        block = (slice(cx * f, cx * f + f), slice(cy * f, cy * f + f), slice(cz * f, cz * f + f))
-        values = fine[block]
-        if kc == 1:  # the thin-only floor: the block's highest voxel alone (an all-zero block is not filled)
-            i = np.unravel_index(int(np.argmax(values)), values.shape)
-            values[i] = iso + 1e-4
-            continue
-        kth = float(np.partition(values.ravel(), n - kc)[n - kc])  # the kc-th largest value
-        fine[block] = np.minimum(values + (iso - kth + 1e-4), 1.0)
-    return fine
-
-
-def remove_specks(fine: np.ndarray, occupancy: np.ndarray, factor: int, max_voxels: int = SPECK_VOXELS,
-                  iso: float = ISO_LEVEL) -> int:
-    """Zero every speck: a 26-connected piece of ``fine > iso`` of at most ``max_voxels`` voxels.
-
-    A speck that is the only material of an occupied coarse cell it touches is kept (the cell stays
-    occupied: Strict-IOU cannot fall). Runs before ``min_fill_projection``, so the fill floor still holds.
-
-    Args:
-        fine: (f·X, f·Y, f·Z) float32 field; modified in place.
-        occupancy: (X, Y, Z) bool coarse cells.
-        factor: f, fine voxels per coarse cell edge.
-        max_voxels: the largest speck, voxels; 0 removes nothing.
-    Returns:
-        the number of specks removed.
-    """
-    import cc3d
-
-    if max_voxels <= 0:
-        return 0
-    binary = fine > iso
-    labels = cc3d.connected_components(binary.view(np.uint8), connectivity=26)
-    sizes = np.bincount(labels.ravel())
-    small = sizes <= max_voxels
-    small[0] = False  # the background
-    if not small.any():
-        return 0
-    speck = small[labels]
-    comp = labels[speck]
-    where = np.argwhere(speck)
-    cells = where // factor
-    cell_id = np.ravel_multi_index(cells.T, occupancy.shape)
-    material = pool_blocks(binary, factor, np.add, dtype=np.int32).ravel()
-    pairs, in_cell = np.unique(np.stack([comp, cell_id]), axis=1, return_counts=True)
-    sole = occupancy.ravel()[pairs[1]] & (material[pairs[1]] <= in_cell)  # the cell has nothing else
-    keep = np.unique(pairs[0][sole])
-    drop = ~np.isin(comp, keep)
-    fine[tuple(where[drop].T)] = 0.0
-    return int(len(np.unique(comp[drop])))
-
-
-def despeckled_columns(field: Callable[[int, int], np.ndarray], occupancy: np.ndarray, start: int, stop: int,
-                       factor: int, max_voxels: int) -> np.ndarray:
-    """Columns [start, stop) of the field with ``remove_specks`` applied as on the whole grid.
-
-    ``field(lo, hi)`` gives the (f·(hi − lo), f·Y, f·Z) field of columns [lo, hi). One column of halo each side
-    decides the specks exactly (``max_voxels`` ≤ f): a speck that reaches into [start, stop) lies within one
-    column of it, and a piece that reaches the halo's far side from inside has more than f voxels.
-    """
-    if max_voxels > factor:
-        raise ValueError(f"max_voxels {max_voxels} > factor {factor}: one column of halo would not decide it")
-    halo = int(max_voxels > 0)
-    lo, hi = max(start - halo, 0), min(stop + halo, occupancy.shape[0])
-    fine = field(lo, hi)
-    remove_specks(fine, occupancy[lo:hi], factor, max_voxels)
-    return np.ascontiguousarray(fine[(start - lo) * factor:(stop - lo) * factor])
-
-
 def cpu_threads() -> int:
     """Threads for CPU inference: every core, but never more than ``OMP_NUM_THREADS`` when it is set."""
     n = os.cpu_count() or 1
@@ -231,7 +111,7 @@ class DecollageDetailizer:
         checkpoint: path of a checkpoint file, or None for the shipped model
             (``DEFAULT_CHECKPOINT``).
         device: a ``Device`` or its value, or ``"cuda:N"`` (``resolve_device``).
-        speck_voxels: pieces of the output this small (fine voxels) are removed (``remove_specks``); 0 keeps
+        speck_voxels: pieces of the output this small (fine voxels) are removed (``model.finish``); 0 keeps
             them. At most the model's factor.
     Raises:
         DetailizeError: no shipped model, bad checkpoint, unavailable device.
@@ -382,9 +262,8 @@ class DecollageDetailizer:
             return fine
 
         def columns(start: int, stop: int) -> FineGrid:
-            fine = despeckled_columns(field, occ, start, stop, f, self.speck_voxels)
-            min_fill_projection(fine, occ[start:stop], f, cfg.min_cell_fill, thin_only=cfg.min_fill_thin_only,
-                                thin=thin[start:stop])
+            fine = finish_columns(field, occ, thin, start, stop, f, self.speck_voxels, cfg.min_cell_fill,
+                                  cfg.min_fill_thin_only)
             origin = (grid.origin_m[0] + start * grid.voxel_size_m, *grid.origin_m[1:])
             return FineGrid(occupancy=fine, style=nearest_upsample(styles_coarse[start:stop], f),
                             style_names=grid.style_names, voxel_size_m=grid.voxel_size_m / f, origin_m=origin,
@@ -444,8 +323,7 @@ class DecollageDetailizer:
         fine = np.zeros(tuple(n * f for n in occ.shape), dtype=np.float32)
         fine[tuple(slice(s.start * f, s.stop * f) for s in crop.src)] = cropped
         cfg = self.ckpt.config
-        remove_specks(fine, occ, f, self.speck_voxels)
-        return min_fill_projection(fine, occ, f, cfg.min_cell_fill, thin_only=cfg.min_fill_thin_only)
+        return finish(fine, occ, f, self.speck_voxels, cfg.min_cell_fill, cfg.min_fill_thin_only)
 
 
 @dataclass(frozen=True)

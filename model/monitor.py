@@ -52,7 +52,7 @@ import torch
 
 from model.config import ModelConfig
 from model.data import AugmentConfig, Exemplar, Sample, augmented_sample, rng_for, style_sample
-from model.infer import min_fill_projection
+from model.finish import min_fill_projection
 from model.networks import Generator
 from model.upsample import SIGMA_FINE_VOXELS, smooth_upsample
 from core.grid import EMPTY, ISO_LEVEL

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.grid import ISO_LEVEL
-from model.infer import min_fill_projection
+from model.finish import min_fill_projection
 
 
 def _pool_axis(a: np.ndarray, axis: int, offset: int, factor: int) -> np.ndarray:

@@ -10,7 +10,7 @@ the worst ratio), Strict- and Loose-IOU (×16 max-pool against the input), and t
 output adds (26-connected components of the output minus those of the input: loose cubes, specks).
 ``--min-cell-fill`` overrides the checkpoint's ``min_cell_fill`` (the inference
 projection of ``model/infer.py``), to see what it changes on the same weights; ``--speck-voxels``
-the size of the specks inference removes (0 keeps them; default ``model.infer.SPECK_VOXELS``).
+the size of the specks inference removes (0 keeps them; default ``model.finish.SPECK_VOXELS``).
 Acceptance (issue 15): every cell ≥ 50 % occupied and every extent within 5 %.
 """
 
@@ -23,7 +23,8 @@ import time
 import numpy as np
 
 from evaluation.protocol import load_protocol
-from model.infer import SPECK_VOXELS, DecollageDetailizer
+from model.finish import SPECK_VOXELS
+from model.infer import DecollageDetailizer
 from model.monitor import cell_fill, pieces
 from core.grid import EMPTY, ISO_LEVEL, LabeledGrid
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from core.grid import EMPTY, ISO_LEVEL
 from model.config import ModelConfig
-from model.infer import min_fill_projection
+from model.finish import min_fill_projection
 from model.data import AugmentConfig, crop_to_bbox, exemplars_from_set, rng_for, smooth_target, style_sample
 from model.monitor import MONITOR_SEED
 from model.selfrec_bound import offset_bound, offset_groups

@@ -9,7 +9,7 @@ import json, sys
 import numpy as np
 from model.checkpoint import load_checkpoint
 from model.data import AugmentConfig, exemplars_from_set
-from model.infer import min_fill_projection
+from model.finish import min_fill_projection
 from model.monitor import Monitor, detailize_field, _iou, ISO_LEVEL
 from model.networks import Generator
 from model.data import EMPTY

@@ -12,7 +12,8 @@ import torch
 from model.checkpoint import Checkpoint, save_checkpoint
 from model.config import ModelConfig
 from model.masks import fill_nearest
-from model.infer import DEFAULT_CHECKPOINT, DecollageDetailizer, despeckled_columns, remove_specks, resolve_device
+from model.finish import finish_columns, min_fill_projection, remove_specks, thin_cells
+from model.infer import DEFAULT_CHECKPOINT, DecollageDetailizer, resolve_device
 from model.networks import Generator
 from core import detailizer as pipeline_detailize
 from core.errors import DetailizeError
@@ -179,12 +180,43 @@ def test_column_ranges_judge_specks_as_the_whole_grid():
     assert remove_specks(ref, occ, f, max_voxels=f) == 2
     def field(lo, hi):
         return whole[lo * f:hi * f].copy()
+    thin = np.zeros_like(occ)
     for cut in (1, 2, 3):
-        joined = np.concatenate([despeckled_columns(field, occ, 0, cut, f, f),
-                                 despeckled_columns(field, occ, cut, 4, f, f)])
+        joined = np.concatenate([finish_columns(field, occ, thin, 0, cut, f, f, 0.0, True),
+                                 finish_columns(field, occ, thin, cut, 4, f, f, 0.0, True)])
         assert np.array_equal(joined, ref), cut
     with pytest.raises(ValueError, match="one column of halo"):
-        despeckled_columns(field, occ, 0, 2, f, f + 1)
+        finish_columns(field, occ, thin, 0, 2, f, f + 1, 0.0, True)
+
+
+def test_the_floor_joins_its_one_voxel_to_the_neighbours_material():
+    """A thick part's cell left empty gets one voxel on the face its neighbour's material touches, not at its
+    highest value; with no neighbouring material, half its block; the same in column ranges."""
+    f = 4
+    occ = np.zeros((3, 2, 1), dtype=bool)
+    occ[:, 0, 0] = occ[1, 1, 0] = True
+    fine = np.zeros((12, 8, 4), dtype=np.float32)
+    fine[0:4, 0:4, 0:4] = 0.9  # cell (0,0,0) full
+    fine[8:12, 0:4, 0:4] = 0.9  # cell (2,0,0) full
+    fine[5, 1, 1] = 0.35  # cell (1,0,0): empty, its highest value inside, away from the faces
+    fine[4, 2, 2] = 0.2  # on the face towards cell (0,0,0)'s material
+    thin = np.zeros_like(occ)  # every cell "thick": the one-voxel floor
+    out = min_fill_projection(fine.copy(), occ, f, 0.5, thin_only=True, thin=thin)
+    assert out[4, 2, 2] > ISO_LEVEL and out[5, 1, 1] < ISO_LEVEL  # joined, not the floating highest voxel
+    assert (out[4:8, 0:4, 0:4] > ISO_LEVEL).sum() == 1
+    # cell (1,1,0) above: its neighbour below, cell (1,0,0), had no material before the floor, so one voxel
+    # would float: the cell gets the thin cells' floor, half its block, from its highest values
+    fine[4:8, 4:8, 0:4] = np.linspace(0.0, 0.2, 64, dtype=np.float32).reshape(4, 4, 4)  # distinct, all below iso
+    fine[6, 6, 1] = 0.3
+    out = min_fill_projection(fine.copy(), occ, f, 0.5, thin_only=True, thin=thin)
+    assert out[6, 6, 1] > ISO_LEVEL and (out[4:8, 4:8, 0:4] > ISO_LEVEL).sum() == 32
+    def field(lo, hi):
+        return fine[lo * f:hi * f].copy()
+    whole = min_fill_projection(fine.copy(), occ, f, 0.5, thin_only=True, thin=thin)
+    for cut in (1, 2):
+        joined = np.concatenate([finish_columns(field, occ, thin, 0, cut, f, 0, 0.5, True),
+                                 finish_columns(field, occ, thin, cut, 3, f, 0, 0.5, True)])
+        assert np.array_equal(joined, whole), cut
 
 
 def test_the_detailizer_removes_specks_and_refuses_a_limit_above_the_factor(ckpt_path):
@@ -305,8 +337,8 @@ def test_column_parts_join_into_the_whole_field(ckpt_path, monkeypatch, blockwis
     assert np.array_equal(again.occupancy, second.occupancy)
 
 
-def test_column_parts_keep_the_thin_projection_of_the_whole_grid(tmp_path):
-    """The minimum-fill projection judges a cell thin by its neighbours in the whole grid, also on the cut."""
+def test_column_parts_keep_the_floor_of_the_whole_grid(tmp_path):
+    """The minimum-fill projection holds in column parts as on the whole grid, also on the cut."""
     cfg = dataclasses.replace(ModelConfig.lean(len(PARTS), len(STYLES)).scaled(0.125), min_cell_fill=0.3,
                               min_fill_thin_only=True)
     torch.manual_seed(1)
@@ -321,7 +353,8 @@ def test_column_parts_keep_the_thin_projection_of_the_whole_grid(tmp_path):
     np.testing.assert_allclose(joined, whole, atol=1e-5)
     above = joined.reshape(9, 16, 4, 16, 3, 16) > ISO_LEVEL
     fill = above.mean(axis=(1, 3, 5))
-    assert fill[4, 2:, 0:2].min() < 0.3  # the post's cells were not raised as thin ones (they are not)
+    assert not thin_cells(g.occupancy).any()  # the thick part's floor: every occupied cell keeps material
+    assert fill[g.occupancy].min() > 0
 
 
 _FORKED_HALVES = """

@@ -13,7 +13,7 @@ import torch
 
 from model.checkpoint import load_checkpoint
 from model.config import ModelConfig
-from model.infer import min_fill_projection
+from model.finish import min_fill_projection
 from model.losses import structure_losses, whole_shape_prevs
 from model.monitor import Monitor, cell_fill
 from model.networks import Generator

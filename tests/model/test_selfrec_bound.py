@@ -59,7 +59,7 @@ def test_the_projection_inflates_a_thin_exemplar():
 
 
 def test_thin_cells_are_one_cell_thick_along_some_axis():
-    from model.infer import thin_cells
+    from model.finish import thin_cells
 
     occ = np.zeros((6, 6, 6), dtype=bool)
     occ[1:4, 1:4, 1:4] = True  # a 3³ block: every cell has an occupied neighbour inward on every axis
@@ -73,7 +73,7 @@ def test_thin_cells_are_one_cell_thick_along_some_axis():
 
 
 def test_thin_only_projection_leaves_thick_parts_alone():
-    from model.infer import min_fill_projection
+    from model.finish import min_fill_projection
 
     f = 4
     occ = np.zeros((5, 5, 5), dtype=bool)
