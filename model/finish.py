@@ -43,7 +43,8 @@ def thin_cells(occupancy: np.ndarray) -> np.ndarray:
 
 
 def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, min_fill: float,
-                        iso: float = ISO_LEVEL, thin_only: bool = False, thin: np.ndarray | None = None) -> np.ndarray:
+                        iso: float = ISO_LEVEL, thin_only: bool = False, thin: np.ndarray | None = None,
+                        island_voxels: int = 0) -> np.ndarray:
     """Raise the field of every occupied coarse cell whose block is less than ``min_fill`` occupied.
 
     For such a cell, the field of its ``factor``³ block is raised uniformly by the
@@ -65,6 +66,10 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
             thin cells' floor (``min_fill`` of its block) instead of a voxel that would float.
         thin: (X, Y, Z) bool, the ``thin_cells`` to use instead of those of ``occupancy`` (columns cut from a
             larger grid: a cell on the cut is thin or not by its neighbours in the whole grid).
+        island_voxels: a raised block's new pieces of at most this many voxels, joined neither to the
+            block's largest piece nor to the neighbours' material, are dropped and the block raised again
+            (``ISLAND_ROUNDS`` times at most; what the last raise leaves stays, so the floor holds).
+            Raising a noisy field puts scattered voxels above ``iso``; 0 keeps them.
     """
     if min_fill <= 0 or not occupancy.any():
         return fine
@@ -78,20 +83,42 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
         kc = int(need[cx, cy, cz])
         block = (slice(cx * f, cx * f + f), slice(cy * f, cy * f + f), slice(cz * f, cz * f + f))
         values = fine[block]
+        touch = _touching_neighbours(binary, (cx, cy, cz), f)
         if kc == 1:  # the thin-only floor: one voxel, joined to the neighbours' material
-            point = _attach_point(values, binary, (cx, cy, cz), f)
-            if point is not None:
-                values[point] = iso + 1e-4
+            if touch.any():
+                values[np.unravel_index(int(np.argmax(np.where(touch, values, -np.inf))), values.shape)] = iso + 1e-4
                 continue
             kc = k  # no neighbour has material at its faces: one voxel would float; the thin cells' floor
-        kth = float(np.partition(values.ravel(), n - kc)[n - kc])  # the kc-th largest value
-        fine[block] = np.minimum(values + (iso - kth + 1e-4), 1.0)
+        _raise_block(values, kc, iso, touch, island_voxels)
     return fine
 
 
-def _attach_point(values: np.ndarray, binary: np.ndarray, cell: tuple[int, int, int], f: int) -> tuple | None:
-    """Index into the cell's (f, f, f) block ``values``: its highest voxel face-adjacent to ``binary`` material
-    of a neighbouring block; None when no neighbour has material at the shared faces."""
+#: Rounds of ``min_fill_projection``'s island removal in a raised block (each drops islands, then raises again).
+ISLAND_ROUNDS = 3
+
+
+def _raise_block(values: np.ndarray, kc: int, iso: float, touch: np.ndarray, island_voxels: int) -> None:
+    """Raise the (f, f, f) block ``values`` in place until ``kc`` voxels are above ``iso`` (clipped to 1),
+    dropping small islands between raises (``min_fill_projection``'s ``island_voxels``)."""
+    n = values.size
+    for round_ in range(ISLAND_ROUNDS + 1):
+        kth = float(np.partition(values.ravel(), n - kc)[n - kc])  # the kc-th largest value
+        np.minimum(values + (iso - kth + 1e-4), 1.0, out=values)
+        if island_voxels <= 0 or round_ == ISLAND_ROUNDS:
+            return
+        labels = cc3d.connected_components((values > iso).view(np.uint8), connectivity=26)
+        sizes = np.bincount(labels.ravel())
+        small = sizes <= island_voxels
+        small[0] = False
+        small[int(np.argmax(np.where(np.arange(len(sizes)) > 0, sizes, -1)))] = False  # the block's main piece
+        small[np.unique(labels[touch])] = False  # joined to the neighbours' material
+        if not small.any():
+            return
+        values[small[labels]] = 0.0
+
+
+def _touching_neighbours(binary: np.ndarray, cell: tuple[int, int, int], f: int) -> np.ndarray:
+    """(f, f, f) bool: the cell's block voxels face-adjacent to ``binary`` material of a neighbouring block."""
     origin = [int(c) * f for c in cell]
     touch = np.zeros((f, f, f), dtype=bool)
     for axis in range(3):
@@ -102,9 +129,7 @@ def _attach_point(values: np.ndarray, binary: np.ndarray, cell: tuple[int, int, 
                 face = [slice(None)] * 3
                 face[axis] = inner
                 touch[tuple(face)] |= binary[tuple(plane)]
-    if not touch.any():
-        return None
-    return np.unravel_index(int(np.argmax(np.where(touch, values, -np.inf))), values.shape)
+    return touch
 
 
 def remove_specks(fine: np.ndarray, occupancy: np.ndarray, factor: int, max_voxels: int = SPECK_VOXELS,
@@ -159,7 +184,8 @@ def finish(fine: np.ndarray, occupancy: np.ndarray, factor: int, speck_voxels: i
         occupancy: (X, Y, Z) bool coarse cells; ``thin`` as ``min_fill_projection``'s.
     """
     remove_specks(fine, occupancy, factor, speck_voxels, keep_sole=min_fill <= 0)
-    return min_fill_projection(fine, occupancy, factor, min_fill, thin_only=thin_only, thin=thin)
+    return min_fill_projection(fine, occupancy, factor, min_fill, thin_only=thin_only, thin=thin,
+                               island_voxels=speck_voxels)
 
 
 def finish_columns(field: Callable[[int, int], np.ndarray], occupancy: np.ndarray, thin: np.ndarray, start: int,

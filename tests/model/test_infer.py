@@ -219,6 +219,33 @@ def test_the_floor_joins_its_one_voxel_to_the_neighbours_material():
         assert np.array_equal(joined, whole), cut
 
 
+def test_a_raised_block_drops_its_islands_and_still_meets_the_floor():
+    """Raising a noisy block to half full puts scattered voxels above iso; with ``island_voxels`` they go, the
+    block is raised again, and it still ends at least half full, in one piece."""
+    import cc3d
+
+    f = 8
+    occ = np.zeros((1, 1, 1), dtype=bool)
+    occ[0, 0, 0] = True  # a lone cell: thin along every axis
+    rng = np.random.default_rng(0)
+    fine = (rng.random((f, f, f)) * 0.2).astype(np.float32)  # noise below iso
+    xs, ys, zs = np.meshgrid(*[np.arange(f)] * 3, indexing="ij")
+    fine += np.where(xs < 4, 0.3, 0.0).astype(np.float32)  # a smooth half: the block's shape
+    fine[6, 2, 2] = fine[6, 5, 6] = fine[7, 1, 5] = 0.39  # isolated high values on the far side
+    pieces = []
+    for islands in (0, 16):
+        out = min_fill_projection(fine.copy(), occ, f, 0.5, thin_only=True, island_voxels=islands)
+        above = out > ISO_LEVEL
+        assert above.sum() >= 256  # the floor holds either way
+        pieces.append(int(cc3d.connected_components(above.view(np.uint8), connectivity=26).max()))
+    assert pieces[0] > 1 and pieces[1] == 1
+    # beside a full neighbour cell, the high value on the shared face is joined to it, not an island: it stays
+    two = np.zeros((2 * f, f, f), dtype=np.float32)
+    two[:f], two[f:] = fine, 0.9
+    out = min_fill_projection(two, np.ones((2, 1, 1), dtype=bool), f, 0.5, thin_only=True, island_voxels=16)
+    assert out[7, 1, 5] > ISO_LEVEL and out[6, 2, 2] < ISO_LEVEL
+
+
 def test_the_detailizer_removes_specks_and_refuses_a_limit_above_the_factor(ckpt_path):
     g = _grid((4, 3, 5))
     raw = DecollageDetailizer(ckpt_path, device="cpu", speck_voxels=0).detailize(g).occupancy
