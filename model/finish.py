@@ -83,7 +83,7 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
         kc = int(need[cx, cy, cz])
         block = (slice(cx * f, cx * f + f), slice(cy * f, cy * f + f), slice(cz * f, cz * f + f))
         values = fine[block]
-        touch = _touching_neighbours(binary, (cx, cy, cz), f)
+        touch = _touching_neighbours(binary, (cx, cy, cz), f) if kc == 1 or island_voxels > 0 else None
         if kc == 1:  # the thin-only floor: one voxel, joined to the neighbours' material
             if touch.any():
                 values[np.unravel_index(int(np.argmax(np.where(touch, values, -np.inf))), values.shape)] = iso + 1e-4
@@ -97,7 +97,7 @@ def min_fill_projection(fine: np.ndarray, occupancy: np.ndarray, factor: int, mi
 ISLAND_ROUNDS = 3
 
 
-def _raise_block(values: np.ndarray, kc: int, iso: float, touch: np.ndarray, island_voxels: int) -> None:
+def _raise_block(values: np.ndarray, kc: int, iso: float, touch: np.ndarray | None, island_voxels: int) -> None:
     """Raise the (f, f, f) block ``values`` in place until ``kc`` voxels are above ``iso`` (clipped to 1),
     dropping small islands between raises (``min_fill_projection``'s ``island_voxels``)."""
     n = values.size
@@ -110,7 +110,7 @@ def _raise_block(values: np.ndarray, kc: int, iso: float, touch: np.ndarray, isl
         sizes = np.bincount(labels.ravel())
         small = sizes <= island_voxels
         small[0] = False
-        small[int(np.argmax(np.where(np.arange(len(sizes)) > 0, sizes, -1)))] = False  # the block's main piece
+        small[1 + int(np.argmax(sizes[1:]))] = False  # the block's main piece (the raise left one at least)
         small[np.unique(labels[touch])] = False  # joined to the neighbours' material
         if not small.any():
             return
