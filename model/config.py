@@ -25,6 +25,7 @@ from enum import Enum
 from typing import Any
 
 from core.errors import DetailizeError
+from model.strict_json import Reader, bad, to_plain
 
 
 class Upsampler(str, Enum):
@@ -152,6 +153,11 @@ class LossConfig:
             (``losses.fill_floor_loss``): in the adversarial G step, every occupied coarse cell whose
             block's mean output is below ``fill_floor`` is charged (L_down is met by one voxel per 2³
             block, so over four doublings a cell may keep one voxel of 16³: strokes erode).
+        style_mismatch: weight (0 = off, as in the paper) of the matching-aware D term
+            (``losses.discriminator_loss``): on the real style shape of style s, every *other* style
+            head t ≠ s is trained towards "fake" too, so a head cannot answer "real" for any
+            exemplar-like shape and the generator is charged for style t only by t's own look
+            (the mismatched-condition term of Reed et al., ICML 2016, GAN-INT-CLS).
     """
 
     beta_recon: float = 10.0
@@ -169,6 +175,7 @@ class LossConfig:
     up_level_weights: tuple[float, ...] = ()
     gamma_fill: float = 0.0
     fill_floor: float = 0.5
+    style_mismatch: float = 0.0
 
     def up_weight(self, k: int) -> float:
         """γ_up times the factor of the k-th supervised output (``up_level_weights``)."""
@@ -380,12 +387,12 @@ class ModelConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON types only (dicts, lists, str, int, float, bool)."""
-        return _to_plain(self)
+        return to_plain(self)
 
     @classmethod
     def from_dict(cls, data: Any, *, path: str = "config") -> "ModelConfig":
         """Inverse of ``to_dict``; raises ``DetailizeError`` (field = path inside the config)."""
-        r = _Reader(data, path)
+        r = Reader(data, path)
         cfg_kwargs = dict(
             n_parts=r.int("n_parts"),
             n_styles=r.int("n_styles"),
@@ -422,45 +429,41 @@ class ModelConfig:
 # ---------------------------------------------------------------------- validation
 
 
-def _bad(message: str, field_: str, hint: str) -> DetailizeError:
-    return DetailizeError(message, field=field_, hint=hint)
-
-
 def _validate(cfg: ModelConfig) -> None:
     for name in ("n_parts", "n_styles", "style_dim"):
         if getattr(cfg, name) < 1:
-            raise _bad(f"{name} must be ≥ 1, got {getattr(cfg, name)}", name, "use a positive count")
+            raise bad(f"{name} must be ≥ 1, got {getattr(cfg, name)}", name, "use a positive count")
     if not cfg.backbone_widths or len(cfg.backbone_widths) != len(cfg.backbone_dilations):
-        raise _bad(
+        raise bad(
             "backbone_widths and backbone_dilations must be non-empty and of equal length",
             "backbone_dilations",
             "give one dilation per backbone conv",
         )
     for i, (w, d) in enumerate(zip(cfg.backbone_widths, cfg.backbone_dilations)):
         if w < 1 or d < 1:
-            raise _bad(f"backbone conv {i} has width {w}, dilation {d}", f"backbone_widths[{i}]", "both must be ≥ 1")
+            raise bad(f"backbone conv {i} has width {w}, dilation {d}", f"backbone_widths[{i}]", "both must be ≥ 1")
     if not cfg.levels:
-        raise _bad("at least one generator level is needed", "levels", "16× needs four levels")
+        raise bad("at least one generator level is needed", "levels", "16× needs four levels")
     for i, lv in enumerate(cfg.levels):
         where = f"levels[{i}]"
         if lv.width < 1 or lv.n_convs < 0:
-            raise _bad(f"level {i}: width {lv.width}, n_convs {lv.n_convs}", where, "width ≥ 1, n_convs ≥ 0")
+            raise bad(f"level {i}: width {lv.width}, n_convs {lv.n_convs}", where, "width ≥ 1, n_convs ≥ 0")
         if not isinstance(lv.upsampler, Upsampler):
-            raise _bad(f"level {i}: unknown upsampler {lv.upsampler!r}", f"{where}.upsampler", "see Upsampler")
+            raise bad(f"level {i}: unknown upsampler {lv.upsampler!r}", f"{where}.upsampler", "see Upsampler")
         if lv.head_kernel == 0:
             if lv.width != 1 or lv.n_convs != 0 or i != len(cfg.levels) - 1:
-                raise _bad(
+                raise bad(
                     "head_kernel 0 (no head) needs width 1, n_convs 0 and the last level",
                     f"{where}.head_kernel",
                     "use an odd head kernel, or make this the last level with width 1",
                 )
         elif lv.head_kernel < 0 or lv.head_kernel % 2 == 0:
-            raise _bad(f"level {i}: head_kernel {lv.head_kernel} must be odd or 0", f"{where}.head_kernel", "use 1 or 3")
+            raise bad(f"level {i}: head_kernel {lv.head_kernel} must be odd or 0", f"{where}.head_kernel", "use 1 or 3")
     if not isinstance(cfg.pyramid, bool):
-        raise _bad(f"pyramid must be true/false, got {cfg.pyramid!r}", "pyramid", "use a boolean")
+        raise bad(f"pyramid must be true/false, got {cfg.pyramid!r}", "pyramid", "use a boolean")
     supervised = cfg.supervised_levels
     if len(cfg.discriminators) != len(supervised):
-        raise _bad(
+        raise bad(
             f"{len(cfg.discriminators)} discriminators for {len(supervised)} supervised levels",
             "discriminators",
             "give one discriminator per level" if cfg.pyramid
@@ -469,157 +472,73 @@ def _validate(cfg: ModelConfig) -> None:
     for i, (level, d) in enumerate(zip(supervised, cfg.discriminators)):
         where = f"discriminators[{i}]"
         if not d.layers:
-            raise _bad("a discriminator needs at least one conv", where, "see ModelConfig.paper()")
+            raise bad("a discriminator needs at least one conv", where, "see ModelConfig.paper()")
         for k, layer in enumerate(d.layers):
             if layer.width < 1 or layer.kernel < 1 or layer.stride < 1:
-                raise _bad(f"bad layer {layer}", f"{where}.layers[{k}]", "width, kernel, stride ≥ 1")
+                raise bad(f"bad layer {layer}", f"{where}.layers[{k}]", "width, kernel, stride ≥ 1")
         if not d._alignment_exact():
-            raise _bad(
+            raise bad(
                 f"receptive field {d.receptive_field()} and stride {d.stride()} give no integer mask alignment",
                 where,
                 "need (RF − stride) divisible by 2·stride, e.g. RF 7/9 at stride 1, RF 18 at stride 2",
             )
         if (2 ** (level + 1)) % d.stride():
-            raise _bad(
+            raise bad(
                 f"stride {d.stride()} exceeds the level's upsampling factor {2 ** (level + 1)}",
                 where,
                 "use a smaller stride at the first levels",
             )
     if isinstance(cfg.last_hidden, bool) or not isinstance(cfg.last_hidden, int) or cfg.last_hidden < 0:
-        raise _bad(f"last_hidden must be an integer ≥ 0, got {cfg.last_hidden!r}", "last_hidden",
+        raise bad(f"last_hidden must be an integer ≥ 0, got {cfg.last_hidden!r}", "last_hidden",
                    "0 (one linear conv) or e.g. 32")
     last = cfg.levels[-1]
     if cfg.last_hidden and (last.upsampler is not Upsampler.VOXEL_SHUFFLE or last.head_kernel != 0):
-        raise _bad("last_hidden needs a head-less voxel-shuffle last level (the lean layout)", "last_hidden",
+        raise bad("last_hidden needs a head-less voxel-shuffle last level (the lean layout)", "last_hidden",
                    "use 0 with this layout")
     if cfg.style_code_rms < 0:
-        raise _bad("style_code_rms must be ≥ 0", "style_code_rms", "0 (free codes) or e.g. 1")
+        raise bad("style_code_rms must be ≥ 0", "style_code_rms", "0 (free codes) or e.g. 1")
     if cfg.style_init_std < 0:
-        raise _bad("style_init_std must be ≥ 0", "style_init_std", "0 (zeros, the reference) or e.g. 1")
+        raise bad("style_init_std must be ≥ 0", "style_init_std", "0 (zeros, the reference) or e.g. 1")
     if not isinstance(cfg.output_mask, bool):
-        raise _bad(f"output_mask must be true/false, got {cfg.output_mask!r}", "output_mask", "use a boolean")
+        raise bad(f"output_mask must be true/false, got {cfg.output_mask!r}", "output_mask", "use a boolean")
     if not isinstance(cfg.min_fill_thin_only, bool):
-        raise _bad(f"min_fill_thin_only must be true/false, got {cfg.min_fill_thin_only!r}", "min_fill_thin_only",
+        raise bad(f"min_fill_thin_only must be true/false, got {cfg.min_fill_thin_only!r}", "min_fill_thin_only",
                    "use a boolean")
     if not 0 <= cfg.min_cell_fill <= 1:
-        raise _bad("min_cell_fill must lie in [0, 1]", "min_cell_fill", "0 (off) or e.g. 0.5")
+        raise bad("min_cell_fill must lie in [0, 1]", "min_cell_fill", "0 (off) or e.g. 0.5")
     if not 0 < cfg.leaky_slope < 1 or not 0 < cfg.clamp_slope < 1:
-        raise _bad("slopes must lie in (0, 1)", "leaky_slope", "the paper uses 0.02 and 0.002")
+        raise bad("slopes must lie in (0, 1)", "leaky_slope", "the paper uses 0.02 and 0.002")
     lc = cfg.losses
     for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma",
-                 "gamma_fill"):
+                 "gamma_fill", "style_mismatch"):
         if getattr(lc, name) < 0:
-            raise _bad(f"{name} must be ≥ 0", f"losses.{name}", "weights are non-negative")
+            raise bad(f"{name} must be ≥ 0", f"losses.{name}", "weights are non-negative")
     if lc.up_level_weights and (len(lc.up_level_weights) != len(supervised) or min(lc.up_level_weights) < 0):
-        raise _bad(f"up_level_weights needs {len(supervised)} non-negative factors, got {lc.up_level_weights}",
+        raise bad(f"up_level_weights needs {len(supervised)} non-negative factors, got {lc.up_level_weights}",
                    "losses.up_level_weights", "one factor per supervised level, or () for 1 everywhere")
     if not 0 <= lc.fill_floor <= 1:
-        raise _bad("fill_floor must lie in [0, 1]", "losses.fill_floor", "e.g. 0.5 (half of every occupied cell)")
+        raise bad("fill_floor must lie in [0, 1]", "losses.fill_floor", "e.g. 0.5 (half of every occupied cell)")
     if lc.joint_radius < 0 or lc.smoothing_passes < 0:
-        raise _bad("joint_radius and smoothing_passes must be ≥ 0", "losses.joint_radius", "use 2 and 4")
+        raise bad("joint_radius and smoothing_passes must be ≥ 0", "losses.joint_radius", "use 2 and 4")
     if not isinstance(lc.down_loss, DownLoss) or not isinstance(lc.target_smoothing, TargetSmoothing):
-        raise _bad("unknown loss variant", "losses.down_loss", "see DownLoss / TargetSmoothing")
+        raise bad("unknown loss variant", "losses.down_loss", "see DownLoss / TargetSmoothing")
 
 
-# ---------------------------------------------------------------------- JSON helpers
-
-
-def _to_plain(obj: Any) -> Any:
-    if dataclasses.is_dataclass(obj):
-        return {f.name: _to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
-    if isinstance(obj, Enum):
-        return obj.value
-    if isinstance(obj, (tuple, list)):
-        return [_to_plain(x) for x in obj]
-    return obj
-
-
-_MISSING = object()
-
-
-class _Reader:
-    """Strict reader of one JSON object: every key must be read exactly once, types are not coerced."""
-
-    def __init__(self, data: Any, path: str) -> None:
-        if not isinstance(data, dict):
-            raise _bad(f"expected an object, got {type(data).__name__}", path, "re-save the checkpoint")
-        self.data, self.path, self.seen = data, path, set()
-
-    def get(self, key: str, default: Any = _MISSING) -> Any:
-        """The value of ``key``; a missing key is an error unless a ``default`` is given (keys added later)."""
-        if key not in self.data:
-            if default is not _MISSING:
-                return default
-            raise _bad(f"missing key {key!r}", f"{self.path}.{key}", "the checkpoint is from another version")
-        self.seen.add(key)
-        return self.data[key]
-
-    def int(self, key: str, default: Any = _MISSING) -> int:
-        v = self.get(key, default)
-        if isinstance(v, bool) or not isinstance(v, int):
-            raise _bad(f"expected an integer, got {v!r}", f"{self.path}.{key}", "use an integer")
-        return v
-
-    def float(self, key: str, default: Any = _MISSING) -> float:
-        v = self.get(key, default)
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise _bad(f"expected a number, got {v!r}", f"{self.path}.{key}", "use a number")
-        return float(v)
-
-    def bool(self, key: str, default: Any = _MISSING) -> bool:
-        v = self.get(key, default)
-        if not isinstance(v, bool):
-            raise _bad(f"expected true/false, got {v!r}", f"{self.path}.{key}", "use a boolean")
-        return v
-
-    def list(self, key: str) -> list:
-        v = self.get(key)
-        if not isinstance(v, list):
-            raise _bad(f"expected a list, got {v!r}", f"{self.path}.{key}", "use a list")
-        return v
-
-    def float_list(self, key: str, default: Any = _MISSING) -> list[float]:
-        v = self.get(key, default)
-        if not isinstance(v, list):
-            raise _bad(f"expected a list, got {v!r}", f"{self.path}.{key}", "use a list")
-        for i, x in enumerate(v):
-            if isinstance(x, bool) or not isinstance(x, (int, float)):
-                raise _bad(f"expected a number, got {x!r}", f"{self.path}.{key}[{i}]", "use numbers")
-        return [float(x) for x in v]
-
-    def int_list(self, key: str) -> list[int]:
-        v = self.list(key)
-        for i, x in enumerate(v):
-            if isinstance(x, bool) or not isinstance(x, int):
-                raise _bad(f"expected an integer, got {x!r}", f"{self.path}.{key}[{i}]", "use integers")
-        return v
-
-    def enum(self, key: str, kind: type[Enum]) -> Any:
-        v = self.get(key)
-        try:
-            return kind(v)
-        except ValueError:
-            allowed = ", ".join(m.value for m in kind)  # type: ignore[attr-defined]
-            raise _bad(f"unknown value {v!r}", f"{self.path}.{key}", f"use one of: {allowed}") from None
-
-    def done(self) -> None:
-        extra = sorted(set(self.data) - self.seen)
-        if extra:
-            raise _bad(f"unknown key {extra[0]!r}", f"{self.path}.{extra[0]}", "remove it or update decollage")
+# ---------------------------------------------------------------------- JSON readers
 
 
 def _level_from(data: Any, path: str) -> LevelSpec:
-    r = _Reader(data, path)
+    r = Reader(data, path)
     lv = LevelSpec(r.int("width"), r.enum("upsampler", Upsampler), r.int("n_convs"), r.int("head_kernel"))
     r.done()
     return lv
 
 
 def _disc_from(data: Any, path: str) -> DiscriminatorSpec:
-    r = _Reader(data, path)
+    r = Reader(data, path)
     layers = []
     for i, x in enumerate(r.list("layers")):
-        lr = _Reader(x, f"{path}.layers[{i}]")
+        lr = Reader(x, f"{path}.layers[{i}]")
         layers.append(DiscLayer(lr.int("width"), lr.int("kernel"), lr.int("stride")))
         lr.done()
     r.done()
@@ -627,7 +546,7 @@ def _disc_from(data: Any, path: str) -> DiscriminatorSpec:
 
 
 def _losses_from(data: Any, path: str) -> LossConfig:
-    r = _Reader(data, path)
+    r = Reader(data, path)
     lc = LossConfig(
         beta_recon=r.float("beta_recon"),
         gamma_down=r.float("gamma_down"),
@@ -645,6 +564,7 @@ def _losses_from(data: Any, path: str) -> LossConfig:
         # absent from checkpoints written before the floor: off
         gamma_fill=r.float("gamma_fill", default=0.0),
         fill_floor=r.float("fill_floor", default=0.5),
+        style_mismatch=r.float("style_mismatch", default=0.0),  # absent before the term: off
     )
     r.done()
     return lc

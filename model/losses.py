@@ -67,13 +67,20 @@ def generator_gan_loss(
     return {"total": (style + glob).mean(), "style": style.mean(), "global": glob.mean()}
 
 
-def discriminator_loss(d_real: Tensor, d_fake: Tensor, real: DOutputMasks, fake: DOutputMasks) -> dict[str, Tensor]:
+def discriminator_loss(d_real: Tensor, d_fake: Tensor, real: DOutputMasks, fake: DOutputMasks,
+                       mismatch: float = 0.0) -> dict[str, Tensor]:
     """Masked LSGAN discriminator loss of one level (paper supplementary, Eq. L_D).
 
     Real: Σ_s mask_s·(D_s − 1)² + gmask·(D_* − 1)², where the real style shape's masks
     switch on only its own style channel; fake: Σ_s mask_s·D_s² + gmask·D_*², each
     style channel masked to the parts assigned to it. Each side is normalised by its
     own global-mask sum.
+
+    With ``mismatch`` λ > 0 (``LossConfig.style_mismatch``) the real side also charges every
+    other style channel as fake where the real shape is: λ·mean_{t≠s} D_t², with mask_t =
+    Σ_s mask_s − mask_t (the matching-aware discriminator: a head must tell its own style
+    from the other exemplars, not only real from generated). Reported as ``mismatch``
+    (un-weighted); 0 with one style.
 
     Args:
         d_real: (B, N+1, *S_real) output on the (smoothed) style shape.
@@ -87,7 +94,13 @@ def discriminator_loss(d_real: Tensor, d_fake: Tensor, real: DOutputMasks, fake:
     f_den = _per_sample_sum(fg * torch.ones_like(d_fake[:, n:])).clamp_min(1.0)
     real_l = (_per_sample_sum((d_real[:, :n] - 1) ** 2 * rs) + _per_sample_sum((d_real[:, n:] - 1) ** 2 * rg)) / r_den
     fake_l = (_per_sample_sum(d_fake[:, :n] ** 2 * fs) + _per_sample_sum(d_fake[:, n:] ** 2 * fg)) / f_den
-    return {"total": (real_l + fake_l).mean(), "real": real_l.mean(), "fake": fake_l.mean()}
+    mis = d_real.new_zeros(d_real.shape[0])
+    if n > 1:
+        styled = rs * torch.ones_like(d_real[:, :n])  # (B, N, *S): the real masks, broadcast to the output
+        others = (styled.sum(1, keepdim=True) - styled).clamp_min(0) / (n - 1)
+        mis = _per_sample_sum(d_real[:, :n] ** 2 * others) / r_den
+    return {"total": (real_l + fake_l + mismatch * mis).mean(), "real": real_l.mean(), "fake": fake_l.mean(),
+            "mismatch": mis.mean()}
 
 
 def down_loss(
@@ -294,14 +307,16 @@ def discriminator_loss_levels(
         real, fake: per level, their masks (the fake ones from the true per-part assignment
             at every level; ``whole_shape_masks``).
     Returns:
-        ``total``, ``real``, ``fake`` summed over levels and ``real{j}``/``fake{j}`` per level.
+        ``real``, ``fake``, ``mismatch`` (un-weighted) summed over levels, ``real{j}``/``fake{j}``/``mismatch{j}``
+        per level, and ``total`` = real + fake + ``style_mismatch``·mismatch.
     """
     out: dict[str, Tensor] = {}
     levels = cfg.supervised_levels
     for j, dr, df, rm, fm in zip(levels, d_real, d_fake, real, fake):
-        terms = discriminator_loss(dr, df, rm, fm)
-        out[f"real{j}"], out[f"fake{j}"] = terms["real"], terms["fake"]
+        terms = discriminator_loss(dr, df, rm, fm, cfg.losses.style_mismatch)
+        out[f"real{j}"], out[f"fake{j}"], out[f"mismatch{j}"] = terms["real"], terms["fake"], terms["mismatch"]
     out["real"] = sum(out[f"real{j}"] for j in levels[: len(d_real)])  # type: ignore[assignment]
     out["fake"] = sum(out[f"fake{j}"] for j in levels[: len(d_fake)])  # type: ignore[assignment]
-    out["total"] = out["real"] + out["fake"]
+    out["mismatch"] = sum(out[f"mismatch{j}"] for j in levels[: len(d_real)])  # type: ignore[assignment]
+    out["total"] = out["real"] + out["fake"] + cfg.losses.style_mismatch * out["mismatch"]
     return out

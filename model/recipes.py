@@ -55,6 +55,12 @@ a resume must name the same one.
   −0.089: nothing in its losses asks a new shape to look like one style rather than another.
   Training differs only in ``distill_frac`` (``BRANCHABLE_TRAIN_FIELDS``), so a fill state can
   branch into it.
+- ``warmup_centred_long_r1_fill_mismatch``: ``warmup_centred_long_r1_fill`` with the matching-aware
+  D term (``LossConfig.style_mismatch`` = ``MISMATCH_WEIGHT``): on the real exemplar of style s every
+  other style head is trained towards "fake". At 12,973 iterations the fill run's style heads, each
+  trained only on real-s versus generated, reward any exemplar-like shape (specificity −0.090;
+  distillation made it worse); this term asks each head for its own style's look, at no extra forward.
+  Only the losses differ, so a fill state can branch into it.
 - ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
   target the example-based ``quilt`` detailizer's output on an augmented training content
   (new shapes, a random style per part) instead of an exemplar as itself
@@ -81,6 +87,8 @@ R4_LONG_UNTIL = 20000
 WARMUP_LONG_ITERS = 8000
 #: Weight of the cell-fill floor in ``warmup_centred_long_r1_fill`` (γ_down's value).
 FILL_GAMMA = 10.0
+#: Weight of the matching-aware D term in ``warmup_centred_long_r1_fill_mismatch`` (one head's charge per voxel).
+MISMATCH_WEIGHT = 1.0
 #: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
 DISTILL_FRAC = 0.5
 
@@ -150,6 +158,11 @@ def _warmup_centred_long_r1_fill_distill(m: ModelConfig, t: TrainConfig) -> tupl
     return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
 
 
+def _warmup_centred_long_r1_fill_mismatch(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill(m, t)
+    return dataclasses.replace(m, losses=dataclasses.replace(m.losses, style_mismatch=MISMATCH_WEIGHT)), t
+
+
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     m, t = _warmup(m, t)
     return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
@@ -175,6 +188,9 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
                                     "adversarial G step", _warmup_centred_long_r1_fill),
     "warmup_centred_long_r1_fill_distill": ("warmup_centred_long_r1_fill with half the reconstruction targets made "
                                             "by quilt on augmented contents", _warmup_centred_long_r1_fill_distill),
+    "warmup_centred_long_r1_fill_mismatch": ("warmup_centred_long_r1_fill with the matching-aware D term "
+                                             "(other styles' heads charged as fake on each real exemplar)",
+                                             _warmup_centred_long_r1_fill_mismatch),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

@@ -433,6 +433,7 @@ class Trainer:
             "g_total": g["total"].item(), "gan": g["gan"].item(), "down": g["down"].item(), "up": g["up"].item(),
             **({"fill": g["fill"].item()} if cfg.losses.gamma_fill > 0 else {}),
             "d_total": dl["total"].item(), "d_real": dl["real"].item(), "d_fake": dl["fake"].item(),
+            **({"d_mismatch": dl["mismatch"].item()} if cfg.losses.style_mismatch > 0 else {}),
         }
 
     def iteration(self) -> dict[str, float]:

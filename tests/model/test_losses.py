@@ -82,6 +82,20 @@ def test_discriminator_loss_known_values():
     assert terms["fake"].item() == pytest.approx(2 * 0.25**2)
 
 
+def test_discriminator_mismatch_charges_only_the_other_style_heads_on_the_real_shape():
+    style, glob = _masks(n_styles=3)  # the real shape is style 1 on the x = 0 half
+    m = DOutputMasks(style, glob)
+    d = torch.zeros(1, 4, 2, 2, 2)
+    d[:, 0, 0] = 0.5  # style-0 head says 0.5 on the real shape
+    d[:, 2, 1] = 0.9  # style-2 head says 0.9 only off the shape: not charged
+    d[:, 1], d[:, 3] = 1.0, 1.0  # own head and global head: real and perfect
+    terms = discriminator_loss(d, torch.zeros_like(d), m, m, mismatch=2.0)
+    assert terms["real"].item() == pytest.approx(0.0)
+    assert terms["mismatch"].item() == pytest.approx(0.5**2 / 2)  # mean over the 2 other heads, per masked voxel
+    assert terms["total"].item() == pytest.approx(2.0 * 0.5**2 / 2 + terms["fake"].item())
+    assert discriminator_loss(d, torch.zeros_like(d), m, m)["total"].item() == pytest.approx(terms["fake"].item())
+
+
 def test_down_loss_code_hinge_zeroing_conditions():
     coarse = torch.tensor([1.0, 1.0, 0.0, 0.0]).view(1, 1, 4, 1, 1)
     fine = torch.zeros(1, 1, 8, 2, 2)

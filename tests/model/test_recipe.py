@@ -415,3 +415,26 @@ def test_a_fill_state_branches_into_distillation_and_keeps_its_history(tmp_path)
     assert trainer.teacher is not None
     with pytest.raises(ValueError, match="train differently"):  # and it does not reach back into other histories
         move_state_recipe(state, "distill", branch=True)
+
+
+def test_a_fill_state_branches_into_the_mismatch_term_which_the_d_step_charges_and_logs(tmp_path):
+    from model.recipe_move import move_state_recipe
+    from model.recipes import MISMATCH_WEIGHT, recipe_configs
+
+    name = "warmup_centred_long_r1_fill"
+    cfg_f, t_f = recipe_configs(name, _cfg(), _tcfg(tmp_path, 1, recipe=name))
+    cfg_m, t_m = recipe_configs(name + "_mismatch", _cfg(), _tcfg(tmp_path, 1, recipe=name + "_mismatch"))
+    assert cfg_f.losses.style_mismatch == 0 and cfg_m.losses.style_mismatch == MISMATCH_WEIGHT > 0
+    assert dataclasses.replace(cfg_m, losses=cfg_f.losses) == cfg_f  # only the D term differs
+    res = train(EXS, cfg_f, dataclasses.replace(t_f, warmup_iters=0), resume=False)
+    ck = load_checkpoint(res.checkpoint, training_state=True)
+    with pytest.raises(ValueError, match="train differently"):  # other losses are a branch, not a move
+        move_state_recipe(ck, name + "_mismatch")
+    branched = move_state_recipe(ck, name + "_mismatch", branch=True)
+    assert branched.config.losses.style_mismatch == MISMATCH_WEIGHT
+    assert ModelConfig.from_dict(branched.config.to_dict()) == branched.config  # the field round-trips
+    recorded = dict(branched.training["train_config"], out_dir=str(tmp_path / "b"), betas=tuple(t_f.betas))
+    trainer = Trainer(EXS, branched.config, TrainConfig(**recorded))
+    losses = trainer.iteration()
+    assert losses["d_mismatch"] > 0  # logged, and the other heads answer something on the real shape
+    assert "d_mismatch" not in Trainer(EXS, cfg_f, dataclasses.replace(t_f, warmup_iters=0)).iteration()
