@@ -67,7 +67,6 @@ The CLI (``cli/train.py``)::
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import os
@@ -94,6 +93,7 @@ from model.prefetch import ContentPrefetcher
 from model.networks import Generator, build_discriminators
 from model.previews import preview_samples, write_preview
 from model.recipes import RECIPES
+from model.strict_json import to_plain
 from model.views import SampleView, check_window, surface_window
 from model.windows import Window, halo_cells, window_forward, windows_forward  # noqa: F401 - this module's API
 from core.errors import DetailizeError
@@ -475,8 +475,8 @@ class Trainer:
             "machine": f"{platform.machine()} {os.cpu_count()} cpus, {self.device.type}"
                        + (f" ({torch.cuda.get_device_name(self.device)})" if self.device.type == "cuda" else ""),
             "torch": torch.__version__,
-            "train_config": _plain(dataclasses.asdict(self.tcfg)),
-            "augment": _plain(dataclasses.asdict(self.aug)),
+            "train_config": to_plain(self.tcfg),
+            "augment": to_plain(self.aug),
             **({"style_set": self.style_set} if self.style_set else {}),
         }
 
@@ -545,15 +545,6 @@ def _cut_log(log_path: Path, step: int) -> None:
         tmp = log_path.with_suffix(".jsonl.tmp")
         tmp.write_text("".join(kept), encoding="utf-8")
         tmp.replace(log_path)
-
-
-def _plain(obj: Any) -> Any:
-    """Dataclass dicts → JSON types (tuples → lists)."""
-    if isinstance(obj, dict):
-        return {k: _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (tuple, list)):
-        return [_plain(v) for v in obj]
-    return obj
 
 
 def train(

@@ -423,7 +423,7 @@ def test_a_fill_state_branches_into_the_mismatch_term_which_the_d_step_charges_a
 
     name = "warmup_centred_long_r1_fill"
     cfg_f, t_f = recipe_configs(name, _cfg(), _tcfg(tmp_path, 1, recipe=name))
-    cfg_m, t_m = recipe_configs(name + "_mismatch", _cfg(), _tcfg(tmp_path, 1, recipe=name + "_mismatch"))
+    cfg_m, _ = recipe_configs(name + "_mismatch", _cfg(), _tcfg(tmp_path, 1, recipe=name + "_mismatch"))
     assert cfg_f.losses.style_mismatch == 0 and cfg_m.losses.style_mismatch == MISMATCH_WEIGHT > 0
     assert dataclasses.replace(cfg_m, losses=cfg_f.losses) == cfg_f  # only the D term differs
     res = train(EXS, cfg_f, dataclasses.replace(t_f, warmup_iters=0), resume=False)
