@@ -335,6 +335,13 @@ class ModelConfig:
         )
         return dataclasses.replace(base, **overrides) if overrides else base
 
+    def with_discriminator_widths(self, width_mult: float) -> "ModelConfig":
+        """The same config with every discriminator layer's width multiplied (rounded, ≥ 1); kernels and strides kept."""
+        return dataclasses.replace(self, discriminators=tuple(
+            DiscriminatorSpec(tuple(dataclasses.replace(layer, width=max(1, int(round(layer.width * width_mult))))
+                                    for layer in d.layers))
+            for d in self.discriminators))
+
     def scaled(self, width_mult: float) -> "ModelConfig":
         """Same layout with every generator/discriminator width multiplied (≥ 1; ``head_kernel 0`` levels keep width 1).
 
@@ -347,15 +354,10 @@ class ModelConfig:
         levels = tuple(
             lv if lv.head_kernel == 0 else dataclasses.replace(lv, width=s(lv.width)) for lv in self.levels
         )
-        discs = tuple(
-            DiscriminatorSpec(tuple(dataclasses.replace(layer, width=s(layer.width)) for layer in d.layers))
-            for d in self.discriminators
-        )
         return dataclasses.replace(
-            self,
+            self.with_discriminator_widths(width_mult),
             backbone_widths=tuple(s(c) for c in self.backbone_widths),
             levels=levels,
-            discriminators=discs,
         )
 
     # ------------------------------------------------------------------ derived

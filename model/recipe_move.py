@@ -10,9 +10,13 @@ from __future__ import annotations
 
 import dataclasses
 
+import torch
+
 from model.checkpoint import Checkpoint
 from model.config import ModelConfig
-from model.recipes import BRANCHABLE_FIELDS, BRANCHABLE_TRAIN_FIELDS, INFERENCE_ONLY_FIELDS, RECIPES, recipe_configs
+from model.recipes import (BRANCHABLE_FIELDS, BRANCHABLE_TRAIN_FIELDS, INFERENCE_ONLY_FIELDS, RECIPES,
+                           RESETTABLE_FIELDS, recipe_configs)
+from model.networks import build_discriminators
 from model.train import TrainConfig
 
 
@@ -27,8 +31,11 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
     the iterations the state has done. With ``branch`` the recipes may also differ in
     ``BRANCHABLE_FIELDS`` (the losses) and ``BRANCHABLE_TRAIN_FIELDS`` (distillation's share):
     the state then continues under the new recipe's losses and targets from its step on, which is a new run branched from the old one (its meta records
-    ``recipe_branched_from``), not the old run moved. Raises ValueError (unknown recipe, or the
-    recipes train differently).
+    ``recipe_branched_from``), not the old run moved. A branch may also change
+    ``RESETTABLE_FIELDS`` (the discriminators' layout): the new recipe is applied to the state's own
+    config for them, and the discriminators start afresh (weights drawn with the run's seed, a new
+    Adam state; the meta records ``discriminators_reset_at``) while the generator and its optimizer
+    are kept. Raises ValueError (unknown recipe, or the recipes train differently).
     """
     old = ck.training.get("recipe", "reference")
     if name not in RECIPES or old not in RECIPES:
@@ -39,19 +46,33 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
     m_new, t_new = recipe_configs(name, base, t0)
     differ = [f.name for f in dataclasses.fields(m_old) if getattr(m_old, f.name) != getattr(m_new, f.name)]
     step = int(ck.training.get("step", 0))
-    allowed = (*INFERENCE_ONLY_FIELDS, *BRANCHABLE_FIELDS) if branch else INFERENCE_ONLY_FIELDS
+    allowed = (*INFERENCE_ONLY_FIELDS, *BRANCHABLE_FIELDS, *RESETTABLE_FIELDS) if branch else INFERENCE_ONLY_FIELDS
     train_fields = (*_RECON_COUNT_FIELDS, *(BRANCHABLE_TRAIN_FIELDS if branch else ()))
     if set(differ) - set(allowed) or not _same_history(t_old, t_new, step, train_fields):
         raise ValueError(f"recipes {old!r} and {name!r} train differently ({differ or 'TrainConfig'})")
-    config = dataclasses.replace(ck.config, **{f: getattr(m_new, f) for f in allowed})
-    branched = set(differ) & set(BRANCHABLE_FIELDS) or any(
+    reset = [f for f in RESETTABLE_FIELDS if f in differ]
+    own = recipe_configs(name, ck.config, t0)[0] if reset else ck.config  # the new layout, at the state's sizes
+    if reset and recipe_configs(old, ck.config, t0)[0].discriminators != ck.config.discriminators:
+        raise ValueError(f"recipe {old!r} changes the discriminators itself: branch from a state of its base recipe")
+    config = dataclasses.replace(ck.config, **{f: getattr(m_new, f) for f in allowed if f not in RESETTABLE_FIELDS},
+                                 **{f: getattr(own, f) for f in reset})
+    branched = set(differ) & {*BRANCHABLE_FIELDS, *RESETTABLE_FIELDS} or any(
         getattr(t_old, f) != getattr(t_new, f) for f in BRANCHABLE_TRAIN_FIELDS)
     key = "recipe_branched_from" if branch and branched else "recipe_moved_from"
     training = {**ck.training, "recipe": name, key: {"recipe": old, "step": step}}
     if isinstance(training.get("train_config"), dict):
         training["train_config"] = {**training["train_config"], "recipe": name,
                                     **{f: getattr(t_new, f) for f in train_fields}}
-    return dataclasses.replace(ck, config=config, training=training)
+    if not reset:
+        return dataclasses.replace(ck, config=config, training=training)
+    training["discriminators_reset_at"] = step
+    run = {**dataclasses.asdict(t0), **(training.get("train_config") or {})}  # the run's settings, defaults where absent
+    with torch.random.fork_rng(devices=[]):  # drawn from the run's seed and the step; the global RNG is untouched
+        torch.manual_seed(int(run["seed"]) + step)
+        discs = build_discriminators(config)
+    opt = torch.optim.Adam(discs.parameters(), lr=float(run["lr"]), betas=tuple(run["betas"]))
+    return dataclasses.replace(ck, config=config, training=training, discriminators=discs.state_dict(),
+                               optimizers={**(ck.optimizers or {}), "d": opt.state_dict()})
 
 
 #: TrainConfig fields that only set how many reconstruction steps each iteration takes.

@@ -438,3 +438,45 @@ def test_a_fill_state_branches_into_the_mismatch_term_which_the_d_step_charges_a
     losses = trainer.iteration()
     assert losses["d_mismatch"] > 0  # logged, and the other heads answer something on the real shape
     assert "d_mismatch" not in Trainer(EXS, cfg_f, dataclasses.replace(t_f, warmup_iters=0)).iteration()
+
+
+def test_a_mismatch_state_branches_into_wider_discriminators_which_start_afresh(tmp_path):
+    from model.recipe_move import move_state_recipe
+    from model.recipes import WIDE_D_MULT, recipe_configs
+
+    name = "warmup_centred_long_r1_fill_mismatch"
+    cfg_m, t_m = recipe_configs(name, _cfg(), _tcfg(tmp_path, 1, recipe=name))
+    cfg_w, _ = recipe_configs(name + "_wide_d", _cfg(), _tcfg(tmp_path, 1, recipe=name + "_wide_d"))
+    assert dataclasses.replace(cfg_w, discriminators=cfg_m.discriminators) == cfg_m  # only the layout of D differs
+    for dm, dw in zip(cfg_m.discriminators, cfg_w.discriminators):
+        assert [x.width * WIDE_D_MULT for x in dm.layers] == [x.width for x in dw.layers]
+        assert dw.receptive_field() == dm.receptive_field() and dw.stride() == dm.stride()
+    res = train(EXS, cfg_m, dataclasses.replace(t_m, warmup_iters=0), resume=False)
+    ck = load_checkpoint(res.checkpoint, training_state=True)
+    with pytest.raises(ValueError, match="train differently"):  # another D is a branch, not a move
+        move_state_recipe(ck, name + "_wide_d")
+    rng = torch.get_rng_state()
+    branched = move_state_recipe(ck, name + "_wide_d", branch=True)
+    again = move_state_recipe(ck, name + "_wide_d", branch=True)
+    assert torch.equal(rng, torch.get_rng_state())  # the fresh weights leave the global RNG alone
+    assert branched.config == cfg_w  # the state's own (test-sized) layout, widened
+    assert branched.training["discriminators_reset_at"] == 1
+    assert branched.training["recipe_branched_from"] == {"recipe": name, "step": 1}
+    for k, v in ck.generator.items():  # the generator and its optimizer are kept
+        assert torch.equal(v, branched.generator[k])
+    assert branched.optimizers["g"] is ck.optimizers["g"] and branched.optimizers["d"]["state"] == {}
+    for k, v in branched.discriminators.items():  # new, wider weights, drawn the same way twice
+        assert v.shape[0] == WIDE_D_MULT * ck.discriminators[k].shape[0] or v.shape[0] == cfg_w.n_styles + 1
+        assert torch.equal(v, again.discriminators[k])
+    # the branch restores into a trainer of the new layout and trains on
+    from model.checkpoint import save_checkpoint
+    out = tmp_path / "b"
+    out.mkdir()
+    save_checkpoint(out / "last.pt", branched)
+    recorded = dict(branched.training["train_config"], out_dir=str(out), betas=tuple(t_m.betas))
+    trainer = Trainer(EXS, branched.config, TrainConfig(**recorded))
+    trainer.restore(out / "last.pt")
+    assert trainer.step == 1 and trainer.iteration()["d_mismatch"] > 0
+    wide_state = load_checkpoint(out / "last.pt", training_state=True)
+    with pytest.raises(ValueError, match="changes the discriminators itself"):  # no way back to the narrow layout
+        move_state_recipe(wide_state, name, branch=True)
