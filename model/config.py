@@ -182,6 +182,11 @@ class LossConfig:
         return self.gamma_up * (self.up_level_weights[k] if self.up_level_weights else 1.0)
 
 
+def _scaled_width(width: int, mult: float) -> int:
+    """A channel count multiplied by ``mult``, rounded, at least 1 (``ModelConfig.scaled`` and its D-only twin)."""
+    return max(1, int(round(width * mult)))
+
+
 def _rf7(w: tuple[int, int, int]) -> DiscriminatorSpec:
     return DiscriminatorSpec(tuple(DiscLayer(c) for c in w))
 
@@ -338,7 +343,7 @@ class ModelConfig:
     def with_discriminator_widths(self, width_mult: float) -> "ModelConfig":
         """The same config with every discriminator layer's width multiplied (rounded, ≥ 1); kernels and strides kept."""
         return dataclasses.replace(self, discriminators=tuple(
-            DiscriminatorSpec(tuple(dataclasses.replace(layer, width=max(1, int(round(layer.width * width_mult))))
+            DiscriminatorSpec(tuple(dataclasses.replace(layer, width=_scaled_width(layer.width, width_mult))
                                     for layer in d.layers))
             for d in self.discriminators))
 
@@ -348,15 +353,12 @@ class ModelConfig:
         Receptive fields, strides and alignment are unchanged; used for small test models.
         """
 
-        def s(c: int) -> int:
-            return max(1, int(round(c * width_mult)))
-
         levels = tuple(
-            lv if lv.head_kernel == 0 else dataclasses.replace(lv, width=s(lv.width)) for lv in self.levels
+            lv if lv.head_kernel == 0 else dataclasses.replace(lv, width=_scaled_width(lv.width, width_mult)) for lv in self.levels
         )
         return dataclasses.replace(
             self.with_discriminator_widths(width_mult),
-            backbone_widths=tuple(s(c) for c in self.backbone_widths),
+            backbone_widths=tuple(_scaled_width(c, width_mult) for c in self.backbone_widths),
             levels=levels,
         )
 
