@@ -21,14 +21,13 @@ matters): peak ≈ ``BASE_BYTES`` + the larger of
   Re-measured 2026-12-06 (AMD EPYC, 2 cores; fully occupied cubes, ``--jobs 1``,
   proportional set size summed over the build's processes, the learned model
   with its finish): 1.47 / 1.58 / 2.48 / 3.99 / 2.44 / 3.19 / 4.22 GB at
-  16³ / 20³ / 24³ / 28³ / 30³ / 36³ / 40³ (estimates 1.61 / 2.05 / 2.89 / 3.95 /
-  4.54 / 7.11 / 9.39 GB), 2.54 GB at 64×24×24 (estimate 5.91). Up to 30³ the
-  whole block's mesh is cut in two and the second half meshed in a forked
-  process while the first process still holds the field: there the peak grows
-  ~45 B per fine voxel and passes the estimate by 1 % at 28³; from 36³ on the
-  field is streamed column range by column range and the peak stays far below
-  it. The constant is kept: at the 10 GB budget the largest cube it admits
-  (41³) peaks near 4.5 GB.
+  16³ (RSS sum, an upper bound) / 20³ / 24³ / 28³ / 30³ / 36³ / 40³ (estimates 1.61 / 2.05 / 2.89 / 3.95 /
+  4.54 / 7.11 / 9.39 GB), 2.54 GB at 64×24×24 (estimate 5.91). Up to 30³ two
+  processes were alive at the peak (the second mesh half in a forked process,
+  it seems, beside the one holding the field): there the peak grew ~45 B per
+  fine voxel and passed the estimate by 1 % at 28³; from 36³ on one process
+  was, and the peak stayed far below the estimate. The constant is kept: the
+  largest cube the 10 GB budget admits is 41³, and 40³ peaked at 4.22 GB.
 
 The constants round those figures up (all but the 28³ case above). The budget is ``DEFAULT_MEMORY_BUDGET_GB``
 per asset (what a 2-core, 24 GB machine holds with ``--jobs 2``: two workers of
