@@ -257,6 +257,14 @@ class ModelConfig:
             1×1×1 conv to the 8 sub-voxels: a non-linearity before the finest level that still
             runs no conv at 256³ (the capacity A/B of ``model/weights/things_selfrec.md``; the
             halo of ``model.windows`` is unchanged). Needs such a last level.
+        style_modulation: False = z enters every level only as concatenated input channels (the
+            paper's and the reference's way). Inside one style's region z is constant, so a conv over
+            the concatenation adds a per-style *bias* to each pre-activation and nothing more.
+            True: every level's output features (before its occupancy head) are also modulated per
+            coarse cell, ``y · (1 + γ(z)) + β(z)`` (FiLM), with γ, β from a 1×1×1 conv of the coarse
+            z (``Generator.style_films``, initialised to zero: the output is the concatenation-only
+            one until they learn), so a style can turn feature channels up, down or off. The
+            modulation maps learn with the style codes' learning rate (their Adam group).
         losses: loss weights and variants.
     """
 
@@ -277,6 +285,7 @@ class ModelConfig:
     min_cell_fill: float = 0.0
     min_fill_thin_only: bool = False
     last_hidden: int = 0
+    style_modulation: bool = False
     losses: LossConfig = field(default_factory=LossConfig)
 
     def __post_init__(self) -> None:
@@ -419,6 +428,7 @@ class ModelConfig:
             min_cell_fill=r.float("min_cell_fill", default=0.0),
             min_fill_thin_only=r.bool("min_fill_thin_only", default=False),
             last_hidden=r.int("last_hidden", default=0),
+            style_modulation=r.bool("style_modulation", default=False),
             losses=_losses_from(r.get("losses"), f"{path}.losses"),
         )
         r.done()

@@ -54,6 +54,32 @@ def part_onehot(part_labels: Tensor, occupancy: Tensor, n_parts: int) -> Tensor:
     return onehot * occupancy
 
 
+def modulate_cells(y: Tensor, gamma: Tensor, beta: Tensor) -> Tensor:
+    """FiLM per coarse cell: ``y · (1 + γ) + β`` with γ, β constant over each cell's block, never upsampled.
+
+    Args:
+        y: (B, C, f·d, f·h, f·w) features, in the standard or the ``channels_last_3d`` format.
+        gamma, beta: (B, C, d, h, w), one value per channel and coarse cell.
+    Returns:
+        (B, C, f·d, f·h, f·w) in ``y``'s memory format. The blocks are broadcast through a
+        view, so no (B, C, f·d, …) copy of γ or β is made (at 128³ with 16 channels one
+        would be 134 MB per tensor for a 16³ grid).
+    """
+    b, c, big_d, big_h, big_w = y.shape
+    d, h, w = gamma.shape[2:]
+    f = big_d // d
+    if (f * d, f * h, f * w) != (big_d, big_h, big_w):
+        raise DetailizeError(f"features {tuple(y.shape)} are not whole blocks of the {d}×{h}×{w} modulation",
+                             field="style_modulation", hint="cut features and conditioning to the same cells")
+    if not y.is_contiguous() and y.is_contiguous(memory_format=torch.channels_last_3d):
+        yv = y.permute(0, 2, 3, 4, 1).view(b, d, f, h, f, w, f, c)
+        g, t = (v.permute(0, 2, 3, 4, 1).reshape(b, d, 1, h, 1, w, 1, c) for v in (gamma, beta))
+        return torch.addcmul(t, yv, g + 1.0).view(b, big_d, big_h, big_w, c).permute(0, 4, 1, 2, 3)
+    yv = y.contiguous().view(b, c, d, f, h, f, w, f)
+    g, t = (v.reshape(b, c, d, 1, h, 1, w, 1) for v in (gamma, beta))
+    return torch.addcmul(t, yv, g + 1.0).view(b, c, big_d, big_h, big_w)
+
+
 def memory_format_of(module: nn.Module) -> torch.memory_format:
     """The format the module's 5-D weights were put in (``module.to(memory_format=...)``)."""
     for p in module.parameters():
@@ -95,18 +121,27 @@ class _Level(nn.Module):
         self.supervised = supervised
         self.slope = slope
 
-    def forward(self, x: Tensor, with_head: bool = True) -> tuple[Tensor, Tensor | None]:
-        """x: (B, in_ch, d, h, w) → (features (B, width, 2d, 2h, 2w), pre-activation occupancy or None)."""
+    def forward(self, x: Tensor, with_head: bool = True,
+                film: tuple[Tensor, Tensor] | None = None) -> tuple[Tensor, Tensor | None]:
+        """x: (B, in_ch, d, h, w) → (features (B, width, 2d, 2h, 2w), pre-activation occupancy or None).
+
+        ``film``: (γ, β), each (B, width, d', h', w') per coarse cell (``modulate_cells``), applied
+        to the level's output features before its head (to the occupancy pre-activation of a
+        head-less voxel-shuffle level); None: no modulation.
+        """
         if self.pre is not None:
             x = F.leaky_relu(self.pre(x), self.slope, inplace=True)
         y = self.up(x)
         if self.shuffle:
             y = voxel_shuffle(y).contiguous(memory_format=_format_of(x))
         if self.head is None and self.supervised:  # the single shuffled channel is the occupancy pre-activation
+            y = y if film is None else modulate_cells(y, *film)
             return y, y
         y = F.leaky_relu(y, self.slope, inplace=True)
         for conv in self.convs:
             y = F.leaky_relu(conv(y), self.slope, inplace=True)
+        if film is not None:
+            y = modulate_cells(y, *film)
         return y, (self.head(y) if with_head and self.head is not None else None)
 
 
@@ -135,7 +170,9 @@ class Generator(nn.Module):
     Conv weights use PyTorch's default initialisation (seed with ``torch.manual_seed``
     for reproducible weights); the style codes start at zero, or random with
     ``cfg.style_init_std``. With ``cfg.output_mask`` every output is zero outside the
-    occupied coarse cells.
+    occupied coarse cells. With ``cfg.style_modulation`` every level's output features are
+    also scaled and shifted per coarse cell by γ, β = ``style_films[j]``(z) (a 1×1×1 conv of
+    the coarse style field, zero at the start; ``modulate_cells``).
     """
 
     def __init__(self, cfg: ModelConfig) -> None:
@@ -159,6 +196,13 @@ class Generator(nn.Module):
                                  hidden=hidden))
             feat = spec.width
         self.levels = nn.ModuleList(levels)
+        # Registered last, so a state without them keeps its parameters' order (``model.recipe_move``).
+        self.style_films: nn.ModuleList | None = None
+        if cfg.style_modulation:
+            self.style_films = nn.ModuleList(nn.Conv3d(z, 2 * spec.width, 1) for spec in cfg.levels)
+            for film in self.style_films:  # zero: the modulation starts as the identity
+                nn.init.zeros_(film.weight)
+                nn.init.zeros_(film.bias)
 
     def codes(self) -> Tensor:
         """The (style_dim, N) codes as used: the learnt ones, or rescaled to ``cfg.style_code_rms`` per style."""
@@ -277,9 +321,13 @@ class Generator(nn.Module):
         cfg = self.cfg
         stop = cfg.n_levels if stop is None else stop
         outs = []
+        z = cond[:, cond.shape[1] - cfg.style_dim:]  # the style field is cond's last channels (``trunk``)
         for j in range(start, stop):
+            film = None
+            if self.style_films is not None:
+                film = self.style_films[j](z).chunk(2, dim=1)
             x = torch.cat([x, upsample_nearest(cond, 2**j)], 1)
-            x, logit = self.levels[j](x, with_head=all_heads or j == cfg.n_levels - 1)
+            x, logit = self.levels[j](x, with_head=all_heads or j == cfg.n_levels - 1, film=film)
             if logit is not None:
                 out = leaky_clamp(logit, cfg.clamp_slope)
                 if cfg.output_mask:

@@ -14,9 +14,9 @@ import torch
 
 from model.checkpoint import Checkpoint
 from model.config import ModelConfig
-from model.recipes import (BRANCHABLE_FIELDS, BRANCHABLE_TRAIN_FIELDS, INFERENCE_ONLY_FIELDS, RECIPES,
+from model.recipes import (BRANCHABLE_FIELDS, BRANCHABLE_TRAIN_FIELDS, GROWN_FIELDS, INFERENCE_ONLY_FIELDS, RECIPES,
                            RESETTABLE_FIELDS, recipe_configs)
-from model.networks import build_discriminators
+from model.networks import Generator, build_discriminators
 from model.train import TrainConfig
 
 
@@ -35,7 +35,11 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
     ``RESETTABLE_FIELDS`` (the discriminators' layout): the new recipe is applied to the state's own
     config for them, and the discriminators start afresh (weights drawn with the run's seed, a new
     Adam state; the meta records ``discriminators_reset_at``) while the generator and its optimizer
-    are kept. Raises ValueError (unknown recipe, or the recipes train differently).
+    are kept. A branch may also turn on ``GROWN_FIELDS`` (the style modulation): the generator gains
+    the new parameters at their identity start (zero), every existing weight and optimizer moment is
+    kept, the new parameters join the generator's last Adam group with fresh moments, and the meta
+    records ``generator_grown_at``; turning one off is refused (it would drop learnt weights).
+    Raises ValueError (unknown recipe, or the recipes train differently).
     """
     old = ck.training.get("recipe", "reference")
     if name not in RECIPES or old not in RECIPES:
@@ -46,23 +50,30 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
     m_new, t_new = recipe_configs(name, base, t0)
     differ = [f.name for f in dataclasses.fields(m_old) if getattr(m_old, f.name) != getattr(m_new, f.name)]
     step = int(ck.training.get("step", 0))
-    allowed = (*INFERENCE_ONLY_FIELDS, *BRANCHABLE_FIELDS, *RESETTABLE_FIELDS) if branch else INFERENCE_ONLY_FIELDS
+    allowed = ((*INFERENCE_ONLY_FIELDS, *BRANCHABLE_FIELDS, *RESETTABLE_FIELDS, *GROWN_FIELDS) if branch
+               else INFERENCE_ONLY_FIELDS)
     train_fields = (*_RECON_COUNT_FIELDS, *(BRANCHABLE_TRAIN_FIELDS if branch else ()))
     if set(differ) - set(allowed) or not _same_history(t_old, t_new, step, train_fields):
         raise ValueError(f"recipes {old!r} and {name!r} train differently ({differ or 'TrainConfig'})")
+    grown = [f for f in GROWN_FIELDS if f in differ]
+    if any(getattr(ck.config, f) and not getattr(m_new, f) for f in grown):
+        raise ValueError(f"recipe {name!r} turns off {', '.join(grown)}: that would drop learnt generator weights")
     reset = [f for f in RESETTABLE_FIELDS if f in differ]
     own = recipe_configs(name, ck.config, t0)[0] if reset else ck.config  # the new layout, at the state's sizes
     if reset and recipe_configs(old, ck.config, t0)[0].discriminators != ck.config.discriminators:
         raise ValueError(f"recipe {old!r} changes the discriminators itself: branch from a state of its base recipe")
     config = dataclasses.replace(ck.config, **{f: getattr(m_new, f) for f in allowed if f not in RESETTABLE_FIELDS},
                                  **{f: getattr(own, f) for f in reset})
-    branched = set(differ) & {*BRANCHABLE_FIELDS, *RESETTABLE_FIELDS} or any(
+    branched = set(differ) & {*BRANCHABLE_FIELDS, *RESETTABLE_FIELDS, *GROWN_FIELDS} or any(
         getattr(t_old, f) != getattr(t_new, f) for f in BRANCHABLE_TRAIN_FIELDS)
     key = "recipe_branched_from" if branch and branched else "recipe_moved_from"
     training = {**ck.training, "recipe": name, key: {"recipe": old, "step": step}}
     if isinstance(training.get("train_config"), dict):
         training["train_config"] = {**training["train_config"], "recipe": name,
                                     **{f: getattr(t_new, f) for f in train_fields}}
+    if grown:
+        training["generator_grown_at"] = step
+        ck = _grow_generator(ck, config)
     if not reset:
         return dataclasses.replace(ck, config=config, training=training)
     training["discriminators_reset_at"] = step
@@ -73,6 +84,30 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
     opt = torch.optim.Adam(discs.parameters(), lr=float(run["lr"]), betas=tuple(run["betas"]))
     return dataclasses.replace(ck, config=config, training=training, discriminators=discs.state_dict(),
                                optimizers={**(ck.optimizers or {}), "d": opt.state_dict()})
+
+
+def _grow_generator(ck: Checkpoint, config: ModelConfig) -> Checkpoint:
+    """``ck`` with the generator of ``config``: its own weights kept, the parameters it lacks at their start values.
+
+    The new parameters are registered after the old ones (``Generator``), so every optimizer index is
+    kept and the new ones are appended to the last group, the style pathway's
+    (``model.train.generator_param_groups``); Adam gives them fresh moments at their first step.
+    """
+    with torch.random.fork_rng(devices=[]):  # the new maps start at zero; nothing random is drawn from the run
+        gen = Generator(config)
+    missing, unexpected = gen.load_state_dict(ck.generator, strict=False)
+    if unexpected or not all(k.startswith("style_films.") for k in missing):
+        raise ValueError(f"the state's generator does not fit the grown layout (missing {missing}, "
+                         f"unexpected {unexpected})")
+    opts = dict(ck.optimizers or {})
+    if "g" in opts:
+        g = opts["g"]
+        n_old = sum(len(grp["params"]) for grp in g["param_groups"])
+        n_new = sum(1 for _ in gen.parameters())
+        groups = [dict(grp) for grp in g["param_groups"]]
+        groups[-1]["params"] = [*groups[-1]["params"], *range(n_old, n_new)]
+        opts["g"] = {"state": g["state"], "param_groups": groups}
+    return dataclasses.replace(ck, generator=gen.state_dict(), optimizers=opts or ck.optimizers)
 
 
 #: TrainConfig fields that only set how many reconstruction steps each iteration takes.

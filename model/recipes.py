@@ -68,6 +68,13 @@ a resume must name the same one.
   fell only from 1.11 to 0.72: heads of 32 channels cannot tell 20 styles apart. The discriminators'
   layout differs (``RESETTABLE_FIELDS``), so a branch into it starts them afresh (new weights, new Adam
   state) and keeps the generator.
+- ``warmup_centred_long_r1_fill_mismatch_film``: ``warmup_centred_long_r1_fill_mismatch`` with the style
+  modulating every level (``ModelConfig.style_modulation``, FiLM per coarse cell). Every recipe above
+  lets z into the levels only as concatenated channels, which inside one style's region is a per-style
+  bias and nothing more; after the wide-D branch the discriminators told the styles apart (mismatch
+  loss 0.85 → 0.57) while the generator's outputs in two styles still overlapped 0.92. The modulation
+  maps start at zero (``GROWN_FIELDS``): a mismatch state branches into it with the same outputs and
+  continues with the maps learning at the codes' rate.
 - ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
   target the example-based ``quilt`` detailizer's output on an augmented training content
   (new shapes, a random style per part) instead of an exemplar as itself
@@ -163,6 +170,10 @@ BRANCHABLE_TRAIN_FIELDS = ("distill_frac",)
 #: ModelConfig fields that set the discriminators' layout: a branch into a recipe that differs in them starts the
 #: discriminators afresh (new weights and optimizer state); the generator and its optimizer are kept.
 RESETTABLE_FIELDS = ("discriminators",)
+#: ModelConfig fields that add generator parameters initialised so that the output is unchanged: a branch into a
+#: recipe that turns them on keeps every weight and optimizer state and adds the new parameters (at zero, with
+#: fresh Adam moments).
+GROWN_FIELDS = ("style_modulation",)
 
 
 def _warmup_centred_long_r1_fill_distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
@@ -178,6 +189,11 @@ def _warmup_centred_long_r1_fill_mismatch(m: ModelConfig, t: TrainConfig) -> tup
 def _warmup_centred_long_r1_fill_mismatch_wide_d(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     m, t = _warmup_centred_long_r1_fill_mismatch(m, t)
     return m.with_discriminator_widths(WIDE_D_MULT), t
+
+
+def _warmup_centred_long_r1_fill_mismatch_film(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill_mismatch(m, t)
+    return dataclasses.replace(m, style_modulation=True), t
 
 
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
@@ -211,6 +227,9 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
     "warmup_centred_long_r1_fill_mismatch_wide_d": ("warmup_centred_long_r1_fill_mismatch with every "
                                                     f"discriminator {WIDE_D_MULT}× as wide",
                                                     _warmup_centred_long_r1_fill_mismatch_wide_d),
+    "warmup_centred_long_r1_fill_mismatch_film": ("warmup_centred_long_r1_fill_mismatch with every level's "
+                                                  "features modulated by the style (FiLM per coarse cell)",
+                                                  _warmup_centred_long_r1_fill_mismatch_film),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

@@ -235,6 +235,22 @@ class TrainResult:
     seconds_per_iteration: float
 
 
+def is_style_parameter(name: str) -> bool:
+    """Whether a generator parameter belongs to the style pathway: the codes and the modulation maps."""
+    return name == "style_codes" or name.startswith("style_films.")
+
+
+def generator_param_groups(gen: Generator, style_lr_mult: float) -> list[dict[str, Any]]:
+    """The generator's two Adam groups: every other parameter (lr × 1), then the style pathway (× ``style_lr_mult``).
+
+    In the order of ``named_parameters``, the codes first in the second group, so a state written
+    before the modulation maps existed keeps every index (``model.recipe_move`` appends the maps).
+    """
+    named = list(gen.named_parameters())
+    return [{"params": [p for n, p in named if not is_style_parameter(n)], "lr_mult": 1.0},
+            {"params": [p for n, p in named if is_style_parameter(n)], "lr_mult": style_lr_mult}]
+
+
 class Trainer:
     """Networks, optimizers and the three steps of an iteration, on one device."""
 
@@ -257,10 +273,8 @@ class Trainer:
             self.discs.to(memory_format=torch.channels_last_3d)
         if tcfg.style_lr_mult == 1.0:
             groups: Any = self.gen.parameters()
-        else:  # the codes in their own group; "lr_mult" is kept in the group (and its saved state)
-            rest = [p for n, p in self.gen.named_parameters() if n != "style_codes"]
-            groups = [{"params": rest, "lr_mult": 1.0},
-                      {"params": [self.gen.style_codes], "lr_mult": tcfg.style_lr_mult}]
+        else:  # the style pathway in its own group; "lr_mult" is kept in the group (and its saved state)
+            groups = generator_param_groups(self.gen, tcfg.style_lr_mult)
         self.opt_g = torch.optim.Adam(groups, lr=tcfg.lr, betas=tcfg.betas)
         self.opt_d = torch.optim.Adam(self.discs.parameters(), lr=tcfg.lr, betas=tcfg.betas)
         self.whole_levels = min(max(tcfg.whole_levels, 0), cfg.n_levels) if tcfg.window_cells else cfg.n_levels
