@@ -42,6 +42,8 @@ FIGURES: tuple[Figure, ...] = (
     Figure("lp_detail_all", "outputs", "lp_detail_all", "LP-detail against all exemplars"),
     Figure("lp_detail_other", "outputs", "lp_detail_other", "LP-detail against the other categories", False),
     Figure("specificity", "outputs", "specificity", "**style specificity** (own − other categories)"),
+    Figure("style_overlap", "outputs", "style_overlap",
+           "style overlap (IOU between single-style outputs of one content; 1 = style-blind)", False),
     Figure("selfrec_iou", "selfrec", "iou", "self-reconstruction IOU (full resolution, 256³)"),
     Figure("selfrec_lp_detail", "selfrec", "lp_detail", "self-reconstruction LP-detail (own exemplar)"),
     Figure("selfrec_lp_iou", "selfrec", "lp_iou", "self-reconstruction LP-IOU (own exemplar)"),

@@ -9,7 +9,9 @@ choices, None for every output):
 * 1000 surface patches (seed = the output's index), each owned by the style
   of the coarse region at its centre, for LP-detail, style specificity and
   the paper's LP-IOU / LP-F (``evaluation.detail``);
-* its views for the paper's Cls (seed = the output's index).
+* its views for the paper's Cls (seed = the output's index);
+* for a single-style output, its style overlap: the mean IOU with the same
+  content's other single-style outputs (``evaluation.style_overlap``).
 
 Then the self-reconstruction cases (``evaluation.selfrec``): IOU at 256³,
 Chamfer, LP-detail and LP-IOU against the own exemplar, and the
@@ -152,6 +154,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
     from evaluation.protocol import set_digest
     from evaluation.render_eval import render_views
     from evaluation.selfrec import N_AUG, case_figures, self_cases
+    from evaluation.style_overlap import StyleOverlap
 
     say = progress or (lambda line: None)
     started = time.perf_counter()
@@ -180,6 +183,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
 
     kinds = {cid: info.get("kind", "?") for cid, info in protocol.content_info.items()}
     records = PatchRecords()
+    overlap = StyleOverlap(outputs)
     rows = []
     loop_start = time.perf_counter()
     for n, out in enumerate(outputs):
@@ -201,6 +205,7 @@ def evaluate(protocol, detailizer, style_set, *, cls: str = "full", limit: int |
         rows.append({"id": out.id, "content": out.content, "kind": kinds.get(out.content, "?"), "mixed": out.mixed,
                      "split": protocol.split_of(out.content), "styles": out.styles, "strict_iou": strict,
                      "loose_iou": loose, "occupied_fine": int(binary.sum()), "seconds": round(t3 - t0, 3)})
+        overlap.add(out, binary, rows[-1])
         eta = (time.perf_counter() - loop_start) / (n + 1) * (len(outputs) - n - 1)
         say(f"[{n + 1}/{len(outputs)}] {out.id}: strict {strict:.3f} loose {loose:.3f} "
             f"({t1 - t0:.2f} + {t2 - t1:.2f} + {t3 - t2:.2f} s; ETA {eta / 60:.1f} min)")

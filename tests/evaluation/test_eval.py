@@ -228,7 +228,10 @@ def test_eval_learned_checkpoint_paired_against_the_baseline(tiny, tmp_path):
     assert report["selfrec"] == [] and report["cls_variant"] == "none"
     vs = report["vs_baseline"]
     assert vs["detailizer"] == "upsample"
-    for key in ("strict_iou", "lp_iou", "lp_detail"):
+    # upsample is style-blind: its single-style outputs of one content are identical; mixed ones get no figure
+    assert baseline["estimates"]["style_overlap"]["mean"] == 1.0
+    assert all((r.get("style_overlap") is None) == r["mixed"] for r in baseline["outputs"])
+    for key in ("strict_iou", "lp_iou", "lp_detail", "style_overlap"):
         want = report["estimates"][key]["mean"] - baseline["estimates"][key]["mean"]
         assert vs[key]["mean"] == pytest.approx(want, abs=1e-12), key
     res = RUNNER.invoke(app, ["eval", "--compare", str(base / "eval.json"), "--compare", str(tmp_path / "ev" / "eval.json"),
