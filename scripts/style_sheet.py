@@ -30,6 +30,11 @@ def _render(binary: np.ndarray) -> np.ndarray:
     return render_depth_shaded(binary, [VIEW[0]], [VIEW[1]], size=CELL)[0]
 
 
+def _label(path: Path) -> str:
+    """A checkpoint's row label: its file name, with its run folder for a run's own ``model.pt`` / ``last.pt``."""
+    return f"{path.parent.name}/{path.name}" if path.stem in ("model", "last") else path.stem
+
+
 def main() -> None:
     from PIL import Image, ImageDraw
 
@@ -52,7 +57,7 @@ def main() -> None:
     contents = a.content or [next(c for c in test if protocol.content_info[c].get("kind") == k)
                              for k in ("cad", "augmented_exemplar")]
     dets = ([("quilt", get_detailizer("quilt", None, "cpu"))] if a.quilt else []) + [
-        (p.stem, get_detailizer("decollage", str(p), "cpu")) for p in a.checkpoints]
+        (_label(p), get_detailizer("decollage", str(p), "cpu")) for p in a.checkpoints]
     names = [e.name for e in style_set.exemplars]
     rows: list[tuple[str, list[np.ndarray]]] = []
     n_cols = 0
