@@ -30,7 +30,7 @@ class StyleOverlap:
 
     def __init__(self, outputs: Iterable) -> None:
         self.expected = Counter(o.content for o in outputs if not o.mixed)
-        self._kept: dict[str, list[tuple[dict, tuple[int, ...], np.ndarray]]] = defaultdict(list)
+        self._kept: dict[str, list[tuple[dict, tuple[tuple[int, ...], np.ndarray]]]] = defaultdict(list)
 
     def add(self, output, binary: np.ndarray, row: dict) -> None:
         """Record one output: ``binary`` (X, Y, Z) bool; ``row`` is the output's report row, which gets the figure.
@@ -41,16 +41,21 @@ class StyleOverlap:
         if output.mixed:
             return
         kept = self._kept[output.content]
-        kept.append((row, binary.shape, np.packbits(binary, axis=None)))
+        kept.append((row, pack(binary)))
         if len(kept) < self.expected[output.content]:
             return
         del self._kept[output.content]
-        for row_i, value in zip((r for r, _, _ in kept), pairwise_overlap([(s, p) for _, s, p in kept])):
+        for (row_i, _), value in zip(kept, pairwise_overlap([p for _, p in kept])):
             row_i["style_overlap"] = value
 
 
+def pack(binary: np.ndarray) -> tuple[tuple[int, ...], np.ndarray]:
+    """(shape, bits) of a bool grid: one bit per voxel, what ``pairwise_overlap`` takes."""
+    return binary.shape, np.packbits(binary, axis=None)
+
+
 def pairwise_overlap(packed: list[tuple[tuple[int, ...], np.ndarray]]) -> list[float | None]:
-    """Per output, the mean IOU with every other output of the list; ``(shape, np.packbits(binary))`` each.
+    """Per output, the mean IOU with every other output of the list; ``pack(binary)`` each.
 
     Two empty outputs count as identical (IOU 1). Returns None for every entry of a list of one.
     """
@@ -60,10 +65,11 @@ def pairwise_overlap(packed: list[tuple[tuple[int, ...], np.ndarray]]) -> list[f
     if len({shape for shape, _ in packed}) != 1:
         raise ValueError("outputs of one content must have the same shape")
     bits = [p for _, p in packed]
+    counts = [int(np.bitwise_count(p).sum()) for p in bits]
     iou = np.ones((n, n))
     for i in range(n):
         for j in range(i + 1, n):
-            inter = int(np.unpackbits(bits[i] & bits[j]).sum())
-            union = int(np.unpackbits(bits[i] | bits[j]).sum())
+            inter = int(np.bitwise_count(bits[i] & bits[j]).sum())
+            union = counts[i] + counts[j] - inter
             iou[i, j] = iou[j, i] = inter / union if union else 1.0
     return [float((iou[i].sum() - 1.0) / (n - 1)) for i in range(n)]

@@ -42,7 +42,7 @@ def main() -> None:
     from core.files import write_bytes_atomic
     from core.grid import ISO_LEVEL
     from evaluation.protocol import DEFAULT_PROTOCOL, load_protocol, resolve_protocol_set
-    from evaluation.style_overlap import pairwise_overlap
+    from evaluation.style_overlap import pack, pairwise_overlap
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("out", type=Path)
@@ -69,7 +69,7 @@ def main() -> None:
                      [_render(style_set.exemplars[names.index(s)].full(style_set.resolution) > 0) for s in styles]))
         for label, det in dets:
             binaries = [np.asarray(det.detailize(protocol.grid(o), seed=0).occupancy) > ISO_LEVEL for o in outs]
-            ov = pairwise_overlap([(b.shape, np.packbits(b, axis=None)) for b in binaries])
+            ov = pairwise_overlap([pack(b) for b in binaries])
             mean = float(np.mean(ov)) if ov and ov[0] is not None else float("nan")
             rows.append((f"{label}\nstyle overlap {mean:.3f}", [_render(b) for b in binaries]))
             print(f"{content} {label}: style overlap {mean:.3f}", flush=True)

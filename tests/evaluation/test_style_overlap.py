@@ -8,17 +8,13 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from evaluation.style_overlap import StyleOverlap, pairwise_overlap
+from evaluation.style_overlap import StyleOverlap, pack as _packed, pairwise_overlap
 
 
 @dataclass(frozen=True)
 class _Out:
     content: str
     mixed: bool
-
-
-def _packed(binary):
-    return binary.shape, np.packbits(binary, axis=None)
 
 
 def test_pairwise_overlap_known_values():
