@@ -440,6 +440,37 @@ def test_a_fill_state_branches_into_the_mismatch_term_which_the_d_step_charges_a
     assert "d_mismatch" not in Trainer(EXS, cfg_f, dataclasses.replace(t_f, warmup_iters=0)).iteration()
 
 
+def test_a_centred_state_branches_into_random_offsets_whose_samples_move_with_the_draw(tmp_path):
+    from model.recipe_move import move_state_recipe
+    from model.recipes import recipe_configs
+
+    name = "warmup_centred_long_r1_fill_mismatch"
+    cfg_c, t_c = recipe_configs(name, _cfg(), _tcfg(tmp_path, 1, recipe=name))
+    cfg_o, t_o = recipe_configs(name + "_offsets", _cfg(), _tcfg(tmp_path, 1, recipe=name + "_offsets"))
+    assert cfg_o == cfg_c and t_c.style_offset == "centre" and t_o.style_offset is None
+    assert dataclasses.replace(t_o, style_offset="centre", recipe=name) == t_c  # nothing else differs
+    res = train(EXS, cfg_c, dataclasses.replace(t_c, warmup_iters=0), resume=False)
+    ck = load_checkpoint(res.checkpoint, training_state=True)
+    with pytest.raises(ValueError, match="train differently"):  # other targets are a branch, not a move
+        move_state_recipe(ck, name + "_offsets")
+    branched = move_state_recipe(ck, name + "_offsets", branch=True)
+    assert branched.config == ck.config and branched.generator.keys() == ck.generator.keys()
+    assert branched.training["recipe_branched_from"] == {"recipe": name, "step": ck.training["step"]}
+    assert branched.training["train_config"]["style_offset"] is None
+    recorded = dict(branched.training["train_config"], out_dir=str(tmp_path / "b"), betas=tuple(t_c.betas))
+    centred = Trainer(EXS, ck.config, dataclasses.replace(t_c, warmup_iters=0))
+    trainer = Trainer(EXS, branched.config, TrainConfig(**recorded))
+    assert trainer.aug.style_offset is None
+    # centred: one placement whatever the draw; branched: the placement follows the draw
+    fixed = [centred.style_sample(0, d).fine_labels for d in (0, 1, 2)]
+    assert all(np.array_equal(fixed[0], f) for f in fixed[1:])
+    moved = [trainer.style_sample(0, d).fine_labels for d in (0, 1, 2)]
+    assert not all(m.shape == moved[0].shape and np.array_equal(moved[0], m) for m in moved[1:])
+    assert trainer.iteration()["recon"] > 0
+    with pytest.raises(ValueError, match="train differently"):  # and not from a recipe with another history
+        move_state_recipe(ck, "warmup", branch=True)
+
+
 def test_a_mismatch_state_branches_into_wider_discriminators_which_start_afresh(tmp_path):
     from model.recipe_move import move_state_recipe
     from model.recipes import WIDE_D_MULT, recipe_configs
