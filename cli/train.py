@@ -70,13 +70,15 @@ def train_command(
     recon_early_iters: int = typer.Option(5000, "--recon-early-iters",
                                           help="Iterations with 4 reconstruction steps each (then 1)."),
     resume: bool = typer.Option(True, "--resume/--no-resume", help="Continue from OUT/last.pt if present."),
+    ema_decay: float = typer.Option(0.0, "--ema-decay", help="Also keep a moving average of the generator's weights "
+                                    "with this beta (e.g. 0.995), written as OUT/model_ema.pt (0: none)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ) -> None:
     """Train the DECOLLAGE detailizer on a style exemplar set (resumable; CPU or CUDA)."""
 
     try:
         _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_every, preview_every,
-               recon_early_iters, resume, quiet, ablation.value, recipe.value)
+               recon_early_iters, resume, quiet, ablation.value, recipe.value, ema_decay)
     except DecollageError as exc:
         fail(exc)
     except KeyboardInterrupt:
@@ -85,7 +87,7 @@ def train_command(
 
 
 def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_every, preview_every,
-           recon_early_iters, resume, quiet, ablation="full", recipe="reference") -> None:
+           recon_early_iters, resume, quiet, ablation="full", recipe="reference", ema_decay=0.0) -> None:
     from model.train import TrainConfig, train  # torch: imported when training, not at every CLI start
 
     console = stderr()
@@ -96,7 +98,7 @@ def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_e
     cfg = make(n_parts=len(sset.vocabulary.parts), n_styles=len(exemplars))
     tcfg = TrainConfig(out_dir=str(out), steps=steps, seed=seed, device=device, resolution=resolution,
                        checkpoint_every=checkpoint_every, preview_every=preview_every,
-                       recon_early_iters=recon_early_iters, ablation=ablation, recipe=recipe,
+                       recon_early_iters=recon_early_iters, ablation=ablation, recipe=recipe, ema_decay=ema_decay,
                        command="decollage " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
     cfg, tcfg = ablation_configs(ablation, *recipe_configs(recipe, cfg, tcfg))
     if not quiet:
@@ -120,4 +122,5 @@ def _train(style_set, out, steps, resolution, layout, seed, device, checkpoint_e
                        progress=progress, style_set=record_of_set(sset).to_json(), teacher_set=sset)
     if not quiet:
         console.print(f"done: step {result.step}, {result.seconds_per_iteration:.2f} s/iteration; "
-                      f"model {result.model}, log {result.log}")
+                      f"model {result.model}, " + (f"average {result.model_ema}, " if result.model_ema else "")
+                      + f"log {result.log}")

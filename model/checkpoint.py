@@ -43,7 +43,7 @@ FORMAT_NAME = "decollage-checkpoint"
 FORMAT_VERSION = 1
 
 _REQUIRED = ("format", "version", "meta", "generator")
-_OPTIONAL = ("discriminators", "optimizers", "rng")
+_OPTIONAL = ("discriminators", "optimizers", "rng", "generator_ema")
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,6 +64,9 @@ class Checkpoint:
         part_aliases: other accepted names of parts (alias → a name in ``part_names``),
             e.g. ``{"body": "bottom", "roof": "top"}`` for the "things" set.
         style_categories: (N,) category of each style exemplar, or () when unknown.
+        generator_ema: the exponential moving average of the generator's weights
+            (``TrainConfig.ema_decay``; same keys and shapes as ``generator``), or None.
+            Training state: read only with ``training_state``.
     """
 
     config: ModelConfig
@@ -77,6 +80,7 @@ class Checkpoint:
     rng: dict[str, Any] | None = None
     part_aliases: dict[str, str] = field(default_factory=dict)
     style_categories: tuple[str, ...] = ()
+    generator_ema: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         _check_vocab(self.config, self.style_names, self.part_names, self.style_parts)
@@ -120,7 +124,7 @@ def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> Path:
     import torch
 
     path = Path(path)
-    _check_states(ckpt.config, ckpt.generator, ckpt.discriminators, path)
+    _check_states(ckpt.config, ckpt.generator, ckpt.discriminators, path, ckpt.generator_ema)
     try:
         meta = json.dumps(ckpt.meta(), sort_keys=True, allow_nan=False)
     except (TypeError, ValueError) as exc:
@@ -138,6 +142,8 @@ def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> Path:
         payload["optimizers"] = ckpt.optimizers
     if ckpt.rng is not None:
         payload["rng"] = {k: v.detach().cpu() for k, v in ckpt.rng.items()}
+    if ckpt.generator_ema is not None:
+        payload["generator_ema"] = _cpu_state(ckpt.generator_ema)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -218,7 +224,7 @@ def load_checkpoint(path: str | Path, *, training_state: bool = False) -> Checkp
         raise DetailizeError(f"checkpoint is incomplete or altered: {what}", file=path,
                              hint="re-train or re-download it")
     ckpt = _from_raw(raw, path, training_state)
-    _check_states(ckpt.config, ckpt.generator, ckpt.discriminators, path)
+    _check_states(ckpt.config, ckpt.generator, ckpt.discriminators, path, ckpt.generator_ema)
     return ckpt
 
 
@@ -256,7 +262,7 @@ def _from_raw(raw: dict[str, Any], path: Path, training_state: bool) -> Checkpoi
                              hint="re-train it")
     if not isinstance(meta["training"], dict):
         raise DetailizeError("training metadata must be an object", file=path, field="training", hint="re-train it")
-    for key in ("generator", "discriminators"):
+    for key in ("generator", "discriminators", "generator_ema"):
         if key in raw and not isinstance(raw[key], dict):
             raise DetailizeError(f"{key} is not a state dict", file=path, field=key, hint="re-train it")
     try:
@@ -270,6 +276,7 @@ def _from_raw(raw: dict[str, Any], path: Path, training_state: bool) -> Checkpoi
             discriminators=raw.get("discriminators") if training_state else None,
             optimizers=raw.get("optimizers") if training_state else None,
             rng=raw.get("rng") if training_state else None,
+            generator_ema=raw.get("generator_ema") if training_state else None,
             part_aliases=aliases,
             style_categories=tuple(categories),
         )
@@ -323,11 +330,12 @@ def expected_shapes(cfg: ModelConfig) -> tuple[dict[str, tuple[int, ...]], dict[
 
 
 def _check_states(cfg: ModelConfig, generator: dict[str, Any], discriminators: dict[str, Any] | None,
-                  path: Path) -> None:
+                  path: Path, generator_ema: dict[str, Any] | None = None) -> None:
     import torch
 
     gen_shapes, disc_shapes = expected_shapes(cfg)
-    for what, state, shapes in (("generator", generator, gen_shapes), ("discriminators", discriminators, disc_shapes)):
+    for what, state, shapes in (("generator", generator, gen_shapes), ("discriminators", discriminators, disc_shapes),
+                                ("generator_ema", generator_ema, gen_shapes)):
         if state is None:
             continue
         missing = sorted(set(shapes) - set(state))

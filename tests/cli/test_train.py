@@ -89,3 +89,15 @@ def test_train_recipe_option_records_the_recipe_and_a_resume_must_name_it(tmp_pa
     assert ck.training["train_config"]["warmup_iters"] > 1 and ck.config.style_init_std > 0
     result = _train(set_path, out, 2, "--preview-every", "0")  # the reference recipe: another run
     assert result.exit_code == 2 and "another config" in result.output
+
+
+def test_train_ema_option_writes_the_average_beside_the_model_and_refuses_a_bad_beta(tmp_path):
+    set_path, out = _tiny_set(tmp_path), tmp_path / "ema"
+    result = _train(set_path, out, 2, "--ema-decay", "0.9", "--preview-every", "0")
+    assert result.exit_code == 0, result.output
+    average, last = load_checkpoint(out / "model_ema.pt"), load_checkpoint(out / "model.pt")
+    assert average.training["weights"] == {"ema_decay": 0.9, "ema_started_at": 0}
+    assert any(not (average.generator[k] == last.generator[k]).all() for k in last.generator)
+    assert load_checkpoint(out / "last.pt").training["train_config"]["ema_decay"] == 0.9
+    result = _train(set_path, tmp_path / "bad", 1, "--ema-decay", "1.5")
+    assert result.exit_code == 2 and "ema_decay" in result.output and "Traceback" not in result.output
