@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Callable
 from model.config import DownLoss, ModelConfig, TargetSmoothing
 
 if TYPE_CHECKING:  # the names are read by the CLI at start-up: keep this module light
-    from model.train import TrainConfig
+    from model.train_config import TrainConfig
 
 #: name → (Table 4 row, change). The change takes and returns (ModelConfig, TrainConfig).
 ABLATIONS: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelConfig, TrainConfig]]]] = {

@@ -17,7 +17,7 @@ from model.config import ModelConfig
 from model.recipes import (BRANCHABLE_FIELDS, BRANCHABLE_TRAIN_FIELDS, GROWN_FIELDS, INFERENCE_ONLY_FIELDS, RECIPES,
                            RESETTABLE_FIELDS, recipe_configs)
 from model.networks import Generator, build_discriminators
-from model.train import TrainConfig
+from model.train_config import TrainConfig
 
 
 def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkpoint:

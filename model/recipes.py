@@ -97,7 +97,7 @@ from typing import TYPE_CHECKING, Callable
 from model.config import ModelConfig
 
 if TYPE_CHECKING:  # the names are read by the CLI at start-up: keep this module light
-    from model.train import TrainConfig
+    from model.train_config import TrainConfig
 
 #: Reconstruction-only iterations at the start of the ``warmup`` recipe.
 WARMUP_ITERS = 3000
