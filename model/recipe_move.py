@@ -27,8 +27,8 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
     ``TrainConfig``: they must differ only in ``INFERENCE_ONLY_FIELDS``; the state keeps its
     weights, optimizers, RNG and step and takes the new recipe's values of those fields and
     its name. The training settings may also differ in how many reconstruction steps an
-    iteration takes (``recon_steps_early``, ``recon_early_iters``) where that changes none of
-    the iterations the state has done. With ``branch`` the recipes may also differ in
+    iteration takes (``recon_steps_early``, ``recon_early_iters``, ``recon_steps_late``,
+    ``recon_late_from``) where that changes none of the iterations the state has done. With ``branch`` the recipes may also differ in
     ``BRANCHABLE_FIELDS`` (the losses) and ``BRANCHABLE_TRAIN_FIELDS`` (distillation's share):
     the state then continues under the new recipe's losses and targets from its step on, which is a new run branched from the old one (its meta records
     ``recipe_branched_from``), not the old run moved. A branch may also change
@@ -111,7 +111,7 @@ def _grow_generator(ck: Checkpoint, config: ModelConfig) -> Checkpoint:
 
 
 #: TrainConfig fields that only set how many reconstruction steps each iteration takes.
-_RECON_COUNT_FIELDS = ("recon_steps_early", "recon_early_iters")
+_RECON_COUNT_FIELDS = ("recon_steps_early", "recon_early_iters", "recon_steps_late", "recon_late_from")
 
 
 def _same_history(a: TrainConfig, b: TrainConfig, step: int, free: tuple[str, ...] = _RECON_COUNT_FIELDS) -> bool:

@@ -26,6 +26,10 @@ class TrainConfig:
         lr, betas: Adam settings for G and D.
         recon_steps_early, recon_early_iters: reconstruction steps per iteration (4)
             during the first iterations (5000), then 1.
+        recon_steps_late, recon_late_from: reconstruction steps per iteration from iteration
+            ``recon_late_from`` on (0 = never; after the warm-up and the early phase). A schedule is a
+            function of the iteration, so a state may take more reconstruction steps from its own
+            step on without changing its history (``model.recipe_move``).
         checkpoint_every: iterations between ``last.pt`` saves.
         preview_every: iterations between sample previews (``previews/step_NNNNNN.png``,
             ``model.previews``; 0 = none, else also one at the end).
@@ -83,6 +87,8 @@ class TrainConfig:
     betas: tuple[float, float] = (0.9, 0.999)
     recon_steps_early: int = 4
     recon_early_iters: int = 5000
+    recon_steps_late: int = 1
+    recon_late_from: int = 0
     checkpoint_every: int = 100
     preview_every: int = 0
     resolution: int = 256
@@ -112,6 +118,8 @@ class TrainConfig:
             # style-sample draws are indexed it·8 + r, so at most 8 reconstruction steps
             (1 <= self.recon_steps_early <= 8, "recon_steps_early", "use 1 to 8 (the reference: 4)"),
             (self.recon_early_iters >= 0, "recon_early_iters", "use 0 or more"),
+            (1 <= self.recon_steps_late <= 8, "recon_steps_late", "use 1 to 8"),
+            (self.recon_late_from >= 0, "recon_late_from", "use 0 (never) or the first iteration of the late phase"),
             (self.checkpoint_every >= 1, "checkpoint_every", "use 1 or more"),
             (self.preview_every >= 0, "preview_every", "use 0 (no previews) or more"),
             (self.resolution >= 16, "resolution", "use 256 (the paper) or 128"),
@@ -141,10 +149,15 @@ class TrainConfig:
 
     def reconstruction_steps(self, it: int) -> int:
         """Reconstruction steps of iteration ``it``: 1 in the warm-up, ``recon_steps_early`` until
-        ``recon_early_iters``, then 1 (``Trainer.iteration``; ``model.recipe_move`` compares recipes by it)."""
-        if it < self.warmup_iters or it >= self.recon_early_iters:
+        ``recon_early_iters``, ``recon_steps_late`` from ``recon_late_from`` (when > 0), else 1
+        (``Trainer.iteration``; ``model.recipe_move`` compares recipes by it)."""
+        if it < self.warmup_iters:
             return 1
-        return self.recon_steps_early
+        if it < self.recon_early_iters:
+            return self.recon_steps_early
+        if 0 < self.recon_late_from <= it:
+            return self.recon_steps_late
+        return 1
 
     def augment(self) -> AugmentConfig:
         return AugmentConfig(resolution=self.resolution, style_offset=self.style_offset)

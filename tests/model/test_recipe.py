@@ -324,6 +324,39 @@ def test_reconstruction_steps_per_iteration_follow_the_phases(tmp_path):
     t = dataclasses.replace(_tcfg(tmp_path, 1), warmup_iters=3, recon_steps_early=4, recon_early_iters=6)
     assert [t.reconstruction_steps(it) for it in range(8)] == [1, 1, 1, 4, 4, 4, 1, 1]
     assert dataclasses.replace(t, recon_early_iters=2).reconstruction_steps(4) == 1
+    late = dataclasses.replace(t, recon_steps_late=2, recon_late_from=7)  # a late phase after the early one
+    assert [late.reconstruction_steps(it) for it in range(9)] == [1, 1, 1, 4, 4, 4, 1, 2, 2]
+    with pytest.raises(DetailizeError, match="recon_steps_late"):
+        dataclasses.replace(t, recon_steps_late=9)
+
+
+def test_an_offsets_state_moves_into_two_reconstruction_steps_only_at_the_recipes_step(tmp_path, monkeypatch):
+    from model.recipe_move import move_state_recipe
+    from model.recipes import R2_FROM, recipe_configs
+
+    name = "warmup_centred_long_r1_fill_mismatch_offsets"
+    cfg_o, t_o = recipe_configs(name, _cfg(), _tcfg(tmp_path, 1, recipe=name))
+    cfg_2, t_2 = recipe_configs(name + "_r2", _cfg(), _tcfg(tmp_path, 1, recipe=name + "_r2"))
+    assert cfg_2 == cfg_o and dataclasses.replace(t_2, recon_steps_late=1, recon_late_from=0, recipe=name) == t_o
+    res = train(EXS, cfg_o, dataclasses.replace(t_o, warmup_iters=0), resume=False)
+    ck = load_checkpoint(res.checkpoint, training_state=True)
+    for step, ok in ((R2_FROM - 1, True), (R2_FROM, True), (R2_FROM + 1, False)):
+        state = dataclasses.replace(ck, training={**ck.training, "step": step})
+        if ok:  # every iteration before the state's step took one reconstruction step under both: a move
+            moved = move_state_recipe(state, name + "_r2")
+            assert moved.training["recipe_moved_from"] == {"recipe": name, "step": step}
+            assert moved.training["train_config"]["recon_steps_late"] == 2
+            assert moved.training["train_config"]["recon_late_from"] == R2_FROM
+        else:  # iteration R2_FROM took one step under the offsets recipe and would take two here
+            with pytest.raises(ValueError, match="train differently"):
+                move_state_recipe(state, name + "_r2")
+    trainer = Trainer(EXS, cfg_2, dataclasses.replace(t_2, warmup_iters=0, recon_late_from=1))
+    calls = []
+    step = trainer.reconstruction_step
+    monkeypatch.setattr(trainer, "reconstruction_step", lambda it, r: calls.append((it, r)) or step(it, r))
+    trainer.iteration()
+    trainer.iteration()
+    assert calls == [(0, 0), (1, 0), (1, 1)]
 
 
 def test_a_state_moves_to_a_longer_4_to_1_phase_only_before_the_phases_part(tmp_path):
