@@ -31,8 +31,9 @@ def _render(binary: np.ndarray) -> np.ndarray:
 
 
 def _label(path: Path) -> str:
-    """A checkpoint's row label: its file name, with its run folder for a run's own ``model.pt`` / ``last.pt``."""
-    return f"{path.parent.name}/{path.name}" if path.stem in ("model", "last") else path.stem
+    """A checkpoint's row label: its file name, with its run folder for a run's own files
+    (``model.pt``, ``model_ema.pt``, ``last.pt``)."""
+    return f"{path.parent.name}/{path.name}" if path.stem in ("model", "model_ema", "last") else path.stem
 
 
 def main() -> None:
