@@ -28,10 +28,11 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
     weights, optimizers, RNG and step and takes the new recipe's values of those fields and
     its name. The training settings may also differ in how many reconstruction steps an
     iteration takes (``recon_steps_early``, ``recon_early_iters``, ``recon_steps_late``,
-    ``recon_late_from``) where that changes none of the iterations the state has done. With ``branch`` the recipes may also differ in
-    ``BRANCHABLE_FIELDS`` (the losses) and ``BRANCHABLE_TRAIN_FIELDS`` (distillation's share):
-    the state then continues under the new recipe's losses and targets from its step on, which is a new run branched from the old one (its meta records
-    ``recipe_branched_from``), not the old run moved. A branch may also change
+    ``recon_late_from``) where that changes none of the iterations the state has done. With
+    ``branch`` the recipes may also differ in ``BRANCHABLE_FIELDS`` (the losses) and
+    ``BRANCHABLE_TRAIN_FIELDS`` (distillation's share, the exemplars' placement): the state then
+    continues under the new recipe's losses and targets from its step on, which is a new run
+    branched from the old one (its meta records ``recipe_branched_from``), not the old run moved. A branch may also change
     ``RESETTABLE_FIELDS`` (the discriminators' layout): the new recipe is applied to the state's own
     config for them, and the discriminators start afresh (weights drawn with the run's seed, a new
     Adam state; the meta records ``discriminators_reset_at``) while the generator and its optimizer

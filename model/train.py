@@ -3,7 +3,8 @@
 One iteration (``Trainer.iteration``):
 
 1. **Reconstruction** — ``recon_steps_early`` (4) steps per iteration for the first
-   ``recon_early_iters`` iterations, then 1: a random style shape as itself, every
+   ``recon_early_iters`` iterations, then 1 (``recon_steps_late`` from ``recon_late_from``
+   on; ``TrainConfig.reconstruction_steps``): a random style shape as itself, every
    part in its own style; loss Σ_levels β·MSE(output, smoothed target); a G step.
    The last of these samples is the discriminators' "real" input. With
    ``distill_frac`` > 0 a step is, with that probability, an augmented content with
@@ -320,8 +321,8 @@ class Trainer:
         """One full iteration at ``self.step``; advances the step.
 
         Warm-up iterations (``it < warmup_iters``) are one reconstruction step; the others
-        are ``recon_steps_early`` or 1 reconstruction steps, the adversarial G step and the
-        D step.
+        are ``tcfg.reconstruction_steps(it)`` reconstruction steps, the adversarial G step and
+        the D step.
         """
         it = self.step
         lr = self._set_lr(it)

@@ -33,7 +33,7 @@ class TrainConfig:
         checkpoint_every: iterations between ``last.pt`` saves.
         preview_every: iterations between sample previews (``previews/step_NNNNNN.png``,
             ``model.previews``; 0 = none, else also one at the end).
-        resolution: R, fine grid edge the shapes are sized for (see module docstring).
+        resolution: R, fine grid edge the shapes are sized for (see ``model.train``'s docstring).
         whole_levels, window_cells: levels ``< whole_levels`` run on the whole shape, the
             finer ones on a random window of ``window_cells``³ coarse cells around the
             surface (``window_cells = 0``: every level on the whole shape).
