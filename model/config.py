@@ -158,6 +158,17 @@ class LossConfig:
             head t ≠ s is trained towards "fake" too, so a head cannot answer "real" for any
             exemplar-like shape and the generator is charged for style t only by t's own look
             (the mismatched-condition term of Reed et al., ICML 2016, GAN-INT-CLS).
+        style_classifier, style_classifier_g: weights (0 = off, as in the paper) of the style
+            classification terms (``losses.style_classification_loss``; AC-GAN, Odena et al., ICML 2017):
+            the style heads' pre-sigmoid outputs read as the logits of a softmax over the N styles. D is
+            trained with it on a batch of real crops, one per style (``model.style_bank``), G on its
+            output toward each part's assigned style. The per-head LSGAN terms see one style per
+            step and did not learn to tell the styles apart (``docs/benchmarks.md``).
+        style_classifier_from: the first supervised level (index into ``supervised_levels``) the
+            classification terms run at (2: 128³ and 256³; at 32³, RF 7, the styles were not
+            separable).
+        style_classifier_crop: edge (voxels) of the real crops at those levels, cut around a
+            surface voxel of the reconstruction step's window (at most the window).
     """
 
     beta_recon: float = 10.0
@@ -176,6 +187,10 @@ class LossConfig:
     gamma_fill: float = 0.0
     fill_floor: float = 0.5
     style_mismatch: float = 0.0
+    style_classifier: float = 0.0
+    style_classifier_g: float = 0.0
+    style_classifier_from: int = 2
+    style_classifier_crop: int = 40
 
     def up_weight(self, k: int) -> float:
         """γ_up times the factor of the k-th supervised output (``up_level_weights``)."""
@@ -524,12 +539,16 @@ def _validate(cfg: ModelConfig) -> None:
         raise bad("slopes must lie in (0, 1)", "leaky_slope", "the paper uses 0.02 and 0.002")
     lc = cfg.losses
     for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma",
-                 "gamma_fill", "style_mismatch"):
+                 "gamma_fill", "style_mismatch", "style_classifier", "style_classifier_g"):
         if getattr(lc, name) < 0:
             raise bad(f"{name} must be ≥ 0", f"losses.{name}", "weights are non-negative")
     if lc.up_level_weights and (len(lc.up_level_weights) != len(supervised) or min(lc.up_level_weights) < 0):
         raise bad(f"up_level_weights needs {len(supervised)} non-negative factors, got {lc.up_level_weights}",
                    "losses.up_level_weights", "one factor per supervised level, or () for 1 everywhere")
+    classify = lc.style_classifier > 0 or lc.style_classifier_g > 0
+    if classify and (not 0 <= lc.style_classifier_from < len(supervised) or lc.style_classifier_crop < 8):
+        raise bad(f"style_classifier_from must index one of the {len(supervised)} supervised levels and the crop "
+                  f"be ≥ 8 voxels", "losses.style_classifier_from", "e.g. 2 (the two finest levels) and 40")
     if not 0 <= lc.fill_floor <= 1:
         raise bad("fill_floor must lie in [0, 1]", "losses.fill_floor", "e.g. 0.5 (half of every occupied cell)")
     if lc.joint_radius < 0 or lc.smoothing_passes < 0:
@@ -579,6 +598,10 @@ def _losses_from(data: Any, path: str) -> LossConfig:
         gamma_fill=r.float("gamma_fill", default=0.0),
         fill_floor=r.float("fill_floor", default=0.5),
         style_mismatch=r.float("style_mismatch", default=0.0),  # absent before the term: off
+        style_classifier=r.float("style_classifier", default=0.0),  # absent before the terms: off
+        style_classifier_g=r.float("style_classifier_g", default=0.0),
+        style_classifier_from=r.int("style_classifier_from", default=2),
+        style_classifier_crop=r.int("style_classifier_crop", default=40),
     )
     r.done()
     return lc

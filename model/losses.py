@@ -320,3 +320,33 @@ def discriminator_loss_levels(
     out["mismatch"] = sum(out[f"mismatch{j}"] for j in levels[: len(d_real)])  # type: ignore[assignment]
     out["total"] = out["real"] + out["fake"] + cfg.losses.style_mismatch * out["mismatch"]
     return out
+
+
+def style_classification_loss(logits: Tensor, target: Tensor, weight: Tensor | None = None) -> Tensor:
+    """Softmax cross-entropy of the style heads read as logits (``LossConfig.style_classifier``).
+
+    Args:
+        logits: (B, N+1, *S) pre-sigmoid discriminator outputs (``Discriminator.logits``); the
+            global channel N is not a style and is left out.
+        target: (B, *S) int64 style of every output voxel.
+        weight: (B, *S) per-voxel weight, or None (all 1).
+    Returns:
+        Σ weight·CE / Σ weight, a scalar (0 where the weights sum to 0; 0 with one style).
+    """
+    n = logits.shape[1] - 1
+    ce = F.cross_entropy(logits[:, :n], target.to(logits.device), reduction="none")
+    if weight is None:
+        return ce.mean()
+    w = weight.to(device=ce.device, dtype=ce.dtype).expand_as(ce)
+    return (ce * w).sum() / w.sum().clamp_min(1e-6)
+
+
+def assigned_styles(style_mask: Tensor) -> tuple[Tensor, Tensor]:
+    """From a fake sample's style-channel masks (B, N, *S): the style of every output voxel (B, *S),
+    the channel of largest mask, and its weight (B, *S), the masks' sum (0 where no part is styled)."""
+    return style_mask.argmax(1), style_mask.sum(1)
+
+
+def real_style_targets(logits: Tensor, styles: Tensor) -> Tensor:
+    """The label map (B, *S) of a batch of real crops of ``styles`` (B,) for outputs ``logits`` (B, N+1, *S)."""
+    return styles.to(logits.device).view(-1, *([1] * (logits.dim() - 2))).expand(logits.shape[0], *logits.shape[2:])

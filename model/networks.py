@@ -372,11 +372,16 @@ class Discriminator(nn.Module):
         self.out = nn.Conv3d(in_ch, n_styles + 1, 1)
         self.slope = slope
 
-    def forward(self, x: Tensor) -> Tensor:
+    def logits(self, x: Tensor) -> Tensor:
+        """The pre-sigmoid outputs (B, N+1, X', Y', Z'): ``forward`` is their sigmoid; the style
+        classification terms read channels 0..N−1 as the logits of a softmax over the styles."""
         x = x.contiguous(memory_format=memory_format_of(self))
         for conv in self.convs:
             x = F.leaky_relu(conv(x), self.slope, inplace=True)
-        return torch.sigmoid(self.out(x))
+        return self.out(x)
+
+    def forward(self, x: Tensor) -> Tensor:
+        return torch.sigmoid(self.logits(x))
 
 
 def build_discriminators(cfg: ModelConfig) -> nn.ModuleList:

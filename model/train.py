@@ -17,6 +17,12 @@ One iteration (``Trainer.iteration``):
    and the detached generated levels, with the fake masks built from the true
    per-part assignment at every level (the reference's bug fixed in ``losses``).
 
+With the style classification terms on (``LossConfig.style_classifier`` / ``_g``, off in
+the paper) the style heads of the levels from ``style_classifier_from`` on are also read
+as softmax logits: step 2 charges G's output for each part's assigned style, step 3
+trains D on a batch of real crops, one per style, kept by ``model/style_bank.py`` from
+the reconstruction steps (a function of (seed, step): a resume replays it).
+
 Every loss comes from ``model/losses.py``'s assembly (``reconstruction_loss``,
 ``generator_adversarial_loss``, ``discriminator_loss_levels``), given the per-level
 masks, α maps and previous grids that ``SampleView`` cuts to each level's cells.
@@ -86,12 +92,14 @@ from model.config import ModelConfig
 from model.data import Exemplar, Sample, augmented_sample, rng_for, style_sample
 from model.distill import QuiltTeacher, distill_sample, is_distilled
 from model.infer import cpu_threads, resolve_device
-from model.losses import discriminator_loss_levels, generator_adversarial_loss, reconstruction_loss
+from model.losses import (assigned_styles, discriminator_loss_levels, generator_adversarial_loss, real_style_targets,
+                          reconstruction_loss, style_classification_loss)
 from model.monitor import Monitor
 from model.prefetch import ContentPrefetcher
 from model.networks import Generator, build_discriminators
 from model.previews import preview_samples, write_preview
 from model.strict_json import to_plain
+from model.style_bank import StyleCropBank, crop_edge
 from model.train_config import TrainConfig, TrainResult  # noqa: F401 - this module's API
 from model.views import SampleView, check_window, surface_window
 from model.windows import Window, halo_cells, window_forward, windows_forward  # noqa: F401 - this module's API
@@ -112,6 +120,12 @@ def generator_param_groups(gen: Generator, style_lr_mult: float) -> list[dict[st
     named = list(gen.named_parameters())
     return [{"params": [p for n, p in named if not is_style_parameter(n)], "lr_mult": 1.0},
             {"params": [p for n, p in named if is_style_parameter(n)], "lr_mult": style_lr_mult}]
+
+
+#: Training-meta entries that record what was done to a state between runs (``model/recipe_move.py``,
+#: ``scripts/style_heads.py warm``): a resumed run keeps them in its checkpoints.
+HISTORY_KEYS = ("recipe_moved_from", "recipe_branched_from", "discriminators_reset_at", "generator_grown_at",
+                "style_classifier_warmed")
 
 
 class Trainer:
@@ -142,6 +156,7 @@ class Trainer:
         self.opt_d = torch.optim.Adam(self.discs.parameters(), lr=tcfg.lr, betas=tcfg.betas)
         self.gen_ema: Generator | None = None  # the weights' moving average (``ema_decay`` > 0)
         self.ema_started_at = 0
+        self.history: dict[str, Any] = {}  # the restored state's ``HISTORY_KEYS``, carried into every checkpoint
         if tcfg.ema_decay > 0:
             self.gen_ema = copy.deepcopy(self.gen).requires_grad_(False).eval()
         self.whole_levels = min(max(tcfg.whole_levels, 0), cfg.n_levels) if tcfg.window_cells else cfg.n_levels
@@ -150,6 +165,7 @@ class Trainer:
         self.wall_s = 0.0
         self._fixed_styles: dict[int, Sample] = {}  # style → its sample, when the placement is fixed
         self.prefetch: ContentPrefetcher | None = None  # set by ``train`` when ``data_workers`` > 0
+        self.bank = self._style_bank()  # the style classification terms' real crops, or None (off)
 
     # ------------------------------------------------------------------ tensors
 
@@ -187,7 +203,51 @@ class Trainer:
             group["lr"] = lr * group.get("lr_mult", 1.0)
         return lr
 
+    def _style_bank(self) -> StyleCropBank | None:
+        """The bank of the classified levels, or None with both classification weights at 0.
+
+        A crop's edge is ``style_classifier_crop`` at most the level's window (``window_cells``
+        coarse cells at 2^(j+1) voxels each) where the level is windowed.
+        """
+        lc, t = self.cfg.losses, self.tcfg
+        if lc.style_classifier <= 0 and lc.style_classifier_g <= 0:
+            return None
+        levels = self.cfg.supervised_levels[lc.style_classifier_from:]
+        cells = t.window_cells if self.whole_levels < self.cfg.n_levels else 0
+        edges = [crop_edge(lc.style_classifier_crop, j, cells, self.whole_levels) for j in levels]
+        return StyleCropBank(levels, edges, self.cfg.n_styles)
+
+    def _bank_put(self, style: int, view: SampleView, it: int, r: int) -> None:
+        """Reconstruction step r of iteration ``it`` drew ``style``: its view's real targets replace the style's crops."""
+        if self.bank is not None:
+            self.bank.put(style, {j: view.target(j) for j in self.bank.levels}, rng_for(self.tcfg.seed, it, 400 + r))
+
+    def rebuild_style_bank(self) -> None:
+        """Remake the bank at ``self.step`` by replaying the iterations before it, latest first, until
+        every style has its crops (the same crops the uninterrupted run holds: they are a function of
+        (seed, it, r)). Also fills it at once for a state branched from a run without the terms."""
+        if self.bank is None:
+            return
+        t, missing = self.tcfg, set(range(self.cfg.n_styles))
+        for it in range(self.step - 1, -1, -1):
+            n_rec = 1 if it < t.warmup_iters else t.reconstruction_steps(it)
+            for r in reversed(range(n_rec)):
+                style = self.reconstruction_style(it, r)
+                if style in missing:
+                    missing.discard(style)
+                    view = self._views(self.style_sample(style, it * 8 + r), it, 200 + r, t.windows_per_step)[0]
+                    self._bank_put(style, view, it, r)
+            if not missing:
+                return
+
     # ------------------------------------------------------------------ steps
+
+    def reconstruction_style(self, it: int, r: int) -> int | None:
+        """The style whose exemplar reconstruction step r of iteration ``it`` reproduces (None: a distilled step)."""
+        t = self.tcfg
+        if self.teacher is not None and is_distilled(t.seed, it, r, t.distill_frac):
+            return None
+        return int(rng_for(t.seed, it, 100 + r).integers(self.cfg.n_styles))
 
     def reconstruction_sample(self, it: int, r: int) -> tuple[Sample, bool]:
         """Reconstruction step r of iteration ``it``'s sample, and whether it is a distilled one.
@@ -197,11 +257,11 @@ class Trainer:
         shape (``model.distill.distill_sample``). A function of (seed, it, r) only.
         """
         t = self.tcfg
-        if self.teacher is not None and is_distilled(t.seed, it, r, t.distill_frac):
+        style = self.reconstruction_style(it, r)
+        if style is None:
             if self.prefetch is not None:  # made ahead by the workers (the same sample)
                 return self.prefetch.distilled(it, r), True
             return distill_sample(self.teacher, self.cfg, self.aug, t.seed, it, r), True
-        style = int(rng_for(t.seed, it, 100 + r).integers(self.cfg.n_styles))
         return self.style_sample(style, it * 8 + r), False
 
     def distilled_steps(self, it: int) -> list[int]:
@@ -265,6 +325,8 @@ class Trainer:
         self.opt_g.zero_grad(set_to_none=True)
         loss.backward()
         self.opt_g.step()
+        if not distilled:
+            self._bank_put(int(self.reconstruction_style(it, r)), views[0], it, r)
         out = {"recon": loss.item()}
         if self.teacher is not None:
             out["distilled"] = float(distilled)
@@ -290,13 +352,19 @@ class Trainer:
         self.discs.requires_grad_(False)
         (outs,) = self._forward([v])
         levels = cfg.supervised_levels
-        d_fake = [d(o) for d, o in zip(self.discs, outs)]
+        d_logits = [d.logits(o) for d, o in zip(self.discs, outs)]
+        d_fake = [torch.sigmoid(x) for x in d_logits]
         fake_masks = [v.masks(j, tuple(df.shape[2:]), cfg) for j, df in zip(levels, d_fake)]
         alphas = ([v.alpha(j, tuple(df.shape[2:]), cfg) for j, df in zip(levels, d_fake)]
                   if self.tcfg.adaptive_alpha else None)
         prevs = [v.crop_prev(outs[k - 1] if k else occ, j, levels[k - 1] if k else -1) for k, j in enumerate(levels)]
         coarse = [v.crop_prev(occ, j, -1) for j in levels]
         g = generator_adversarial_loss(d_fake, outs, prevs, fake_masks, alphas, cfg, coarse)
+        lc, classified = cfg.losses, range(cfg.losses.style_classifier_from, len(levels))
+        if lc.style_classifier_g > 0:  # every part's output classified as its assigned style
+            g["cls"] = sum(style_classification_loss(d_logits[k], *assigned_styles(fake_masks[k].style))
+                           for k in classified)
+            g["total"] = g["total"] + lc.style_classifier_g * g["cls"]
         self.opt_g.zero_grad(set_to_none=True)
         g["total"].backward()
         self.opt_g.step()
@@ -307,6 +375,15 @@ class Trainer:
         d_fake = [d(o.detach()) for d, o in zip(self.discs, outs)]
         real_masks = [real.masks(j, tuple(dr.shape[2:]), cfg) for j, dr in zip(levels, d_real)]
         dl = discriminator_loss_levels(d_real, d_fake, real_masks, fake_masks, cfg)
+        if lc.style_classifier > 0 and self.bank is not None and self.bank.ready():  # one real crop per style
+            dl["cls"], dl["cls_acc"] = dl["total"].new_zeros(()), 0.0
+            for k in classified:
+                crops, styles = self.bank.batch(levels[k])
+                logits = self.discs[k].logits(crops)
+                labels = real_style_targets(logits, styles)
+                dl["cls"] = dl["cls"] + style_classification_loss(logits, labels)
+                dl["cls_acc"] += (logits[:, :cfg.n_styles].argmax(1) == labels).float().mean().item() / len(classified)
+            dl["total"] = dl["total"] + lc.style_classifier * dl["cls"]
         self.opt_d.zero_grad(set_to_none=True)
         dl["total"].backward()
         self.opt_d.step()
@@ -315,6 +392,8 @@ class Trainer:
             **({"fill": g["fill"].item()} if cfg.losses.gamma_fill > 0 else {}),
             "d_total": dl["total"].item(), "d_real": dl["real"].item(), "d_fake": dl["fake"].item(),
             **({"d_mismatch": dl["mismatch"].item()} if cfg.losses.style_mismatch > 0 else {}),
+            **({"g_cls": g["cls"].item()} if "cls" in g else {}),
+            **({"d_cls": dl["cls"].item(), "d_cls_acc": round(dl["cls_acc"], 4)} if "cls" in dl else {}),
         }
 
     def iteration(self) -> dict[str, float]:
@@ -372,6 +451,7 @@ class Trainer:
             "augment": to_plain(self.aug),
             **({"style_set": self.style_set} if self.style_set else {}),
             **({"ema_started_at": self.ema_started_at} if self.gen_ema is not None else {}),
+            **self.history,
         }
 
     def checkpoint(self, full: bool = True, ema: bool = False) -> Checkpoint:
@@ -420,11 +500,13 @@ class Trainer:
         if ck.rng and "torch" in ck.rng:
             torch.set_rng_state(ck.rng["torch"])
         self.step = int(ck.training.get("step", 0))
+        self.history = {k: ck.training[k] for k in HISTORY_KEYS if k in ck.training}
         self.wall_s = float(ck.training.get("wall_time_s", 0.0))
         if self.gen_ema is not None:  # the state's average, or one that starts at this step's weights
             self.gen_ema.load_state_dict(ck.generator_ema if ck.generator_ema is not None else ck.generator)
             self.ema_started_at = int(ck.training.get("ema_started_at", self.step)) \
                 if ck.generator_ema is not None else self.step
+        self.rebuild_style_bank()
 
 
 class _Previews:
