@@ -89,6 +89,15 @@ a resume must name the same one.
   iterations) and self-reconstruction is the line furthest from its bar (0.564 on the test split, bar 0.85),
   so this spends more of each iteration on the fit. Its history up to ``R2_FROM`` is the offsets recipe's, so
   an offsets state at that step moves into it (no branch: only the reconstruction count changes).
+- ``warmup_centred_long_r1_fill_mismatch_offsets_cls``: ``warmup_centred_long_r1_fill_mismatch_offsets`` with
+  the style classification terms at the two finest levels (``LossConfig.style_classifier`` = ``CLS_D_WEIGHT``
+  for D on one real crop per style per step, ``style_classifier_g`` = ``CLS_G_WEIGHT`` for G toward each
+  part's style; ``model/style_bank.py``). At 17,153 the offsets run's style heads, read on the 20 real
+  exemplars, put the exemplar's own head first for 2 of 20 at every level (mean rank 5.5–6.9 of 19): no
+  style signal reached G. A fresh discriminator of the same layout trained as a softmax classifier on
+  crops of all 20 styles per step separated them at 128³ (shape top-1 0.35 after 300 steps, chance 0.05);
+  one style per step, as the LSGAN heads see them, did not (0.05). Only the losses differ, so an
+  offsets state branches into it (the bank is filled at once from the iterations before the branch).
 - ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
   target the example-based ``quilt`` detailizer's output on an augmented training content
   (new shapes, a random style per part) instead of an exemplar as itself
@@ -122,6 +131,12 @@ WIDE_D_MULT = 2
 #: Iteration from which ``warmup_centred_long_r1_fill_mismatch_offsets_r2`` takes 2 reconstruction steps per
 #: iteration: the step of the committed offsets state it continues (a schedule is a function of the iteration).
 R2_FROM = 16340
+#: D's weight on the style classification term in ``warmup_centred_long_r1_fill_mismatch_offsets_cls``: per
+#: level a cross-entropy of ln 20 ≈ 3.0 at chance, level with D's LSGAN total (~3) once it has learnt a little.
+CLS_D_WEIGHT = 1.0
+#: G's weight on it there: at chance 2 × 0.2 × 3.0 = 1.2 against a GAN term of ~3.5 over four levels, so the
+#: classification asks for the style's look without outweighing the realism and structure terms.
+CLS_G_WEIGHT = 0.2
 #: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
 DISTILL_FRAC = 0.5
 
@@ -225,6 +240,13 @@ def _warmup_centred_long_r1_fill_mismatch_offsets_r2(m: ModelConfig,
     return m, dataclasses.replace(t, recon_steps_late=2, recon_late_from=R2_FROM)
 
 
+def _warmup_centred_long_r1_fill_mismatch_offsets_cls(m: ModelConfig,
+                                                       t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill_mismatch_offsets(m, t)
+    return dataclasses.replace(m, losses=dataclasses.replace(m.losses, style_classifier=CLS_D_WEIGHT,
+                                                             style_classifier_g=CLS_G_WEIGHT)), t
+
+
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     m, t = _warmup(m, t)
     return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
@@ -265,6 +287,10 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
     "warmup_centred_long_r1_fill_mismatch_offsets_r2": ("warmup_centred_long_r1_fill_mismatch_offsets with 2 "
                                                         f"reconstruction steps per iteration from {R2_FROM:,}",
                                                         _warmup_centred_long_r1_fill_mismatch_offsets_r2),
+    "warmup_centred_long_r1_fill_mismatch_offsets_cls": ("warmup_centred_long_r1_fill_mismatch_offsets with "
+                                                         "softmax style classification at 128³ and 256³ (D on "
+                                                         "real crops of every style, G toward its styles)",
+                                                         _warmup_centred_long_r1_fill_mismatch_offsets_cls),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 
