@@ -98,6 +98,10 @@ a resume must name the same one.
   crops of all 20 styles per step separated them at 128³ (shape top-1 0.35 after 300 steps, chance 0.05);
   one style per step, as the LSGAN heads see them, did not (0.05). Only the losses differ, so an
   offsets state branches into it (the bank is filled at once from the iterations before the branch).
+  From 17,153 for 450 iterations D's classification stayed at chance (one step an iteration at D's 1e-4);
+  after ``scripts/style_heads.py warm`` D told the styles apart (own head top 15/20 at 128³) but the
+  generator did not follow and lost self-reconstruction (−0.013) and matched Cls (+0.055) against the
+  control (``model/weights/things_selfrec.md``): not kept.
 - ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
   target the example-based ``quilt`` detailizer's output on an augmented training content
   (new shapes, a random style per part) instead of an exemplar as itself
