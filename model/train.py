@@ -217,10 +217,11 @@ class Trainer:
         edges = [crop_edge(lc.style_classifier_crop, j, cells, self.whole_levels) for j in levels]
         return StyleCropBank(levels, edges, self.cfg.n_styles)
 
-    def _bank_put(self, style: int, view: SampleView, it: int, r: int) -> None:
-        """Reconstruction step r of iteration ``it`` drew ``style``: its view's real targets replace the style's crops."""
+    def _bank_put(self, style: int, targets: dict[int, torch.Tensor], it: int, r: int) -> None:
+        """Reconstruction step r of iteration ``it`` drew ``style``: its first view's real targets (level j →
+        (1, 1, …)) replace the style's crops."""
         if self.bank is not None:
-            self.bank.put(style, {j: view.target(j) for j in self.bank.levels}, rng_for(self.tcfg.seed, it, 400 + r))
+            self.bank.put(style, targets, rng_for(self.tcfg.seed, it, 400 + r))
 
     def rebuild_style_bank(self) -> None:
         """Remake the bank at ``self.step`` by replaying the iterations before it, latest first, until
@@ -230,13 +231,12 @@ class Trainer:
             return
         t, missing = self.tcfg, set(range(self.cfg.n_styles))
         for it in range(self.step - 1, -1, -1):
-            n_rec = 1 if it < t.warmup_iters else t.reconstruction_steps(it)
-            for r in reversed(range(n_rec)):
+            for r in reversed(range(t.reconstruction_steps(it))):
                 style = self.reconstruction_style(it, r)
                 if style in missing:
                     missing.discard(style)
                     view = self._views(self.style_sample(style, it * 8 + r), it, 200 + r, t.windows_per_step)[0]
-                    self._bank_put(style, view, it, r)
+                    self._bank_put(style, {j: view.target(j) for j in self.bank.levels}, it, r)
             if not missing:
                 return
 
@@ -319,14 +319,14 @@ class Trainer:
         s, distilled = self.reconstruction_sample(it, r)
         views = self._views(s, it, 200 + r, self.tcfg.windows_per_step)
         levels, beta = self.cfg.supervised_levels, self.cfg.losses.beta_recon
-        per_view = [reconstruction_loss(outs, [v.target(j) for j in levels], beta)["total"]
-                    for v, outs in zip(views, self._forward(views))]
+        targets = [[v.target(j) for j in levels] for v in views]
+        per_view = [reconstruction_loss(outs, tg, beta)["total"] for tg, outs in zip(targets, self._forward(views))]
         loss = per_view[0] if len(per_view) == 1 else sum(per_view) / len(per_view)
         self.opt_g.zero_grad(set_to_none=True)
         loss.backward()
         self.opt_g.step()
-        if not distilled:
-            self._bank_put(int(self.reconstruction_style(it, r)), views[0], it, r)
+        if not distilled:  # the first view's targets, already made for the loss
+            self._bank_put(int(self.reconstruction_style(it, r)), dict(zip(levels, targets[0])), it, r)
         out = {"recon": loss.item()}
         if self.teacher is not None:
             out["distilled"] = float(distilled)

@@ -39,6 +39,7 @@ from torch.nn import functional as F
 from model.checkpoint import load_checkpoint, save_checkpoint
 from model.data import AugmentConfig, exemplars_from_set, style_sample
 from model.monitor import MONITOR_SEED
+from model.losses import real_style_targets, style_classification_loss
 from model.networks import build_discriminators
 from model.style_bank import crop_edge, surface_crop
 from model.views import SampleView
@@ -95,9 +96,8 @@ def train_classifier(disc, split, steps: int, crop: int, one_style: bool, lr: fl
         else:
             styles = list(range(n))
         x = torch.cat([surface_crop(split["train"][s][rng.integers(4)], crop, rng) for s in styles])
-        out = disc.logits(x)[:, :n]
-        label = torch.tensor(styles).view(-1, 1, 1, 1).expand(len(styles), *out.shape[2:])
-        loss = F.cross_entropy(out, label)
+        logits = disc.logits(x)
+        loss = style_classification_loss(logits, real_style_targets(logits, torch.tensor(styles)))
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -132,10 +132,10 @@ def warm(ck, exemplars, steps: int, out: str, lr: float = 1e-3) -> None:
         raise SystemExit("the state's recipe has no style classification term: branch it into one first")
     discs = build_discriminators(cfg)
     discs.load_state_dict(ck.discriminators)
+    run = ck.training.get("train_config") or {}
     for k in range(lc.style_classifier_from, len(cfg.supervised_levels)):
         j = cfg.supervised_levels[k]
         print(f"level {j}: warming the state's discriminator", flush=True)  # on the run's crop edge
-        run = ck.training.get("train_config") or {}
         edge = crop_edge(lc.style_classifier_crop, j, int(run.get("window_cells", 4)), int(run.get("whole_levels", 2)))
         train_classifier(discs[k], _splits(exemplars, cfg, j), steps, edge, False, lr)
     step = int(ck.training.get("step", 0))
