@@ -90,16 +90,15 @@ def move_state_recipe(ck: Checkpoint, name: str, branch: bool = False) -> Checkp
 def _grow_generator(ck: Checkpoint, config: ModelConfig) -> Checkpoint:
     """``ck`` with the generator of ``config``: its own weights kept, the parameters it lacks at their start values.
 
-    The new parameters are registered after the old ones (``Generator``), so every optimizer index is
+    The weight average (``generator_ema``), where the state has one, grows the same way. The new
+    parameters are registered after the old ones (``Generator``), so every optimizer index is
     kept and the new ones are appended to the last group, the style pathway's
     (``model.train.generator_param_groups``); Adam gives them fresh moments at their first step.
     """
-    with torch.random.fork_rng(devices=[]):  # the new maps start at zero; nothing random is drawn from the run
+    grown = [_grown_weights(weights, config) for weights in (ck.generator, ck.generator_ema) if weights is not None]
+    gen_state, ema_state = grown[0], grown[1] if len(grown) > 1 else None
+    with torch.random.fork_rng(devices=[]):
         gen = Generator(config)
-    missing, unexpected = gen.load_state_dict(ck.generator, strict=False)
-    if unexpected or not all(k.startswith("style_films.") for k in missing):
-        raise ValueError(f"the state's generator does not fit the grown layout (missing {missing}, "
-                         f"unexpected {unexpected})")
     opts = dict(ck.optimizers or {})
     if "g" in opts:
         g = opts["g"]
@@ -108,7 +107,19 @@ def _grow_generator(ck: Checkpoint, config: ModelConfig) -> Checkpoint:
         groups = [dict(grp) for grp in g["param_groups"]]
         groups[-1]["params"] = [*groups[-1]["params"], *range(n_old, n_new)]
         opts["g"] = {"state": g["state"], "param_groups": groups}
-    return dataclasses.replace(ck, generator=gen.state_dict(), optimizers=opts or ck.optimizers)
+    return dataclasses.replace(ck, generator=gen_state, generator_ema=ema_state, optimizers=opts or ck.optimizers)
+
+
+def _grown_weights(weights: dict, config: ModelConfig) -> dict:
+    """A generator state dict (the weights, or their moving average) in the grown layout of ``config``: its own
+    tensors kept, the style maps it lacks at their start (zero)."""
+    with torch.random.fork_rng(devices=[]):  # the new maps start at zero; nothing random is drawn from the run
+        gen = Generator(config)
+    missing, unexpected = gen.load_state_dict(weights, strict=False)
+    if unexpected or not all(k.startswith("style_films.") for k in missing):
+        raise ValueError(f"the state's generator does not fit the grown layout (missing {missing}, "
+                         f"unexpected {unexpected})")
+    return gen.state_dict()
 
 
 #: TrainConfig fields that only set how many reconstruction steps each iteration takes.

@@ -102,6 +102,12 @@ a resume must name the same one.
   after ``scripts/style_heads.py warm`` D told the styles apart (own head top 15/20 at 128³) but the
   generator did not follow and lost self-reconstruction (−0.013) and matched Cls (+0.055) against the
   control (``model/weights/things_selfrec.md``): not kept.
+- ``warmup_centred_long_r1_fill_mismatch_offsets_clsk``: ``…_offsets_cls`` with ``CLS_D_STEPS`` D classification
+  steps per iteration (``LossConfig.style_classifier_d_steps``), each on fresh crops of the bank's windows, so
+  that D's classification keeps ahead of the generator; only the losses differ (a cls state branches into it).
+- ``warmup_centred_long_r1_fill_mismatch_offsets_clsk_film``: ``…_offsets_clsk`` with the style modulating every
+  level (FiLM, as ``…_mismatch_film``): a style signal now reaches G, and concatenated codes give each style's
+  region only a bias to answer it with. The maps grow at zero (``GROWN_FIELDS``), so a cls state branches into it.
 - ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
   target the example-based ``quilt`` detailizer's output on an augmented training content
   (new shapes, a random style per part) instead of an exemplar as itself
@@ -141,6 +147,8 @@ CLS_D_WEIGHT = 1.0
 #: G's weight on it there: at chance 2 × 0.2 × 3.0 = 1.2 against a GAN term of ~3.5 over four levels, so the
 #: classification asks for the style's look without outweighing the realism and structure terms.
 CLS_G_WEIGHT = 0.2
+#: D classification steps per iteration in ``warmup_centred_long_r1_fill_mismatch_offsets_clsk`` (``_film``).
+CLS_D_STEPS = 4
 #: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
 DISTILL_FRAC = 0.5
 
@@ -251,6 +259,18 @@ def _warmup_centred_long_r1_fill_mismatch_offsets_cls(m: ModelConfig,
                                                              style_classifier_g=CLS_G_WEIGHT)), t
 
 
+def _warmup_centred_long_r1_fill_mismatch_offsets_clsk(m: ModelConfig,
+                                                        t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill_mismatch_offsets_cls(m, t)
+    return dataclasses.replace(m, losses=dataclasses.replace(m.losses, style_classifier_d_steps=CLS_D_STEPS)), t
+
+
+def _warmup_centred_long_r1_fill_mismatch_offsets_clsk_film(m: ModelConfig,
+                                                             t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill_mismatch_offsets_clsk(m, t)
+    return dataclasses.replace(m, style_modulation=True), t
+
+
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     m, t = _warmup(m, t)
     return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
@@ -295,6 +315,13 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
                                                          "softmax style classification at 128³ and 256³ (D on "
                                                          "real crops of every style, G toward its styles)",
                                                          _warmup_centred_long_r1_fill_mismatch_offsets_cls),
+    "warmup_centred_long_r1_fill_mismatch_offsets_clsk": ("warmup_centred_long_r1_fill_mismatch_offsets_cls with "
+                                                          f"{CLS_D_STEPS} D classification steps per iteration",
+                                                          _warmup_centred_long_r1_fill_mismatch_offsets_clsk),
+    "warmup_centred_long_r1_fill_mismatch_offsets_clsk_film": ("warmup_centred_long_r1_fill_mismatch_offsets_clsk "
+                                                               "with every level's features modulated by the style "
+                                                               "(FiLM per coarse cell)",
+                                                               _warmup_centred_long_r1_fill_mismatch_offsets_clsk_film),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

@@ -5,12 +5,17 @@ LSGAN term is trained on its own style against generated shapes only, never agai
 other styles in the same step; measured on the committed state, the heads did not tell the
 20 exemplars apart (own head top for 2 of 20 exemplars at every level). A softmax over the
 style heads needs several styles per step: this bank keeps, per style and per classified
-generator level j, one surface-centred crop of the real target of the last reconstruction
-step that drew that style, and gives them as one batch (B ≤ N crops, labels = styles).
+generator level j, the real target of the last reconstruction step that drew that style,
+and gives one surface-centred crop of each as one batch (B ≤ N crops, labels = styles).
 
-Crops are cut with the caller's RNG (``rng_for(seed, it, 400 + r)`` in ``model/train.py``),
-so the bank is a function of the run's (seed, step): a resumed run rebuilds it by replaying
-the iterations before its step (``Trainer.rebuild_style_bank``).
+Crops are cut when a batch is asked for, with the caller's RNG (``rng_for(seed, it, 400 + k)``
+for the k-th classification step of iteration ``it`` in ``model/train.py``), so that several
+classification steps per iteration (``LossConfig.style_classifier_d_steps``) see different
+crops of the same windows. (Until 2026-12-07 one crop per style was cut when the style's window
+arrived and reused until it was replaced, every ~N iterations; the cls/clsw arms of
+``model/weights/things_selfrec.md`` ran that way.) The bank is a function of the run's
+(seed, step): a resumed run rebuilds it by replaying the iterations before its step
+(``Trainer.rebuild_style_bank``).
 """
 
 from __future__ import annotations
@@ -53,26 +58,32 @@ def crop_edge(crop: int, j: int, window_cells: int, whole_levels: int) -> int:
 
 
 class StyleCropBank:
-    """Per classified generator level j, style → its latest real crop (1, 1, e_j, e_j, e_j)."""
+    """Per classified generator level j, style → its latest real target (1, 1, X, Y, Z), cut to crops of e_j³.
+
+    Memory: one window per style and level (at R = 256 with 4-cell windows, ≤ 20 × (8 + 1) MiB).
+    """
 
     def __init__(self, levels: Sequence[int], edges: Sequence[int], n_styles: int) -> None:
         self.levels, self.edges, self.n_styles = tuple(levels), dict(zip(levels, edges)), n_styles
-        self.crops: dict[int, dict[int, Tensor]] = {j: {} for j in self.levels}
+        self.targets: dict[int, dict[int, Tensor]] = {j: {} for j in self.levels}
 
-    def put(self, style: int, targets: dict[int, Tensor], rng: np.random.Generator) -> None:
-        """Replace ``style``'s crops with cuts of ``targets`` (level j → (1, 1, X, Y, Z) real target)."""
+    def put(self, style: int, targets: dict[int, Tensor]) -> None:
+        """Replace ``style``'s windows with ``targets`` (level j → (1, 1, X, Y, Z) real target; kept, not copied:
+        the caller does not write to them)."""
         for j in self.levels:
-            self.crops[j][style] = surface_crop(targets[j], self.edges[j], rng).detach().clone()
+            self.targets[j][style] = targets[j].detach()
 
     def styles(self) -> list[int]:
-        """The styles that have crops, in index order."""
-        return sorted(self.crops[self.levels[0]]) if self.levels else []
+        """The styles that have windows, in index order."""
+        return sorted(self.targets[self.levels[0]]) if self.levels else []
 
     def ready(self) -> bool:
         """At least two styles to tell apart."""
         return len(self.styles()) >= 2
 
-    def batch(self, j: int) -> tuple[Tensor, Tensor]:
-        """Level j's crops (B, 1, e, e, e) in style order and their styles (B,) int64."""
+    def batch(self, j: int, rng: np.random.Generator) -> tuple[Tensor, Tensor]:
+        """Level j: one ``surface_crop`` of every style's window, cut with ``rng`` in style order
+        (B, 1, e, e, e), and their styles (B,) int64."""
         styles = self.styles()
-        return torch.cat([self.crops[j][s] for s in styles]), torch.tensor(styles, dtype=torch.int64)
+        crops = [surface_crop(self.targets[j][s], self.edges[j], rng) for s in styles]
+        return torch.cat(crops), torch.tensor(styles, dtype=torch.int64)

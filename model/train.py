@@ -20,8 +20,10 @@ One iteration (``Trainer.iteration``):
 With the style classification terms on (``LossConfig.style_classifier`` / ``_g``, off in
 the paper) the style heads of the levels from ``style_classifier_from`` on are also read
 as softmax logits: step 2 charges G's output for each part's assigned style, step 3
-trains D on a batch of real crops, one per style, kept by ``model/style_bank.py`` from
-the reconstruction steps (a function of (seed, step): a resume replays it).
+trains D on a batch of real crops, one per style, cut from the windows that
+``model/style_bank.py`` keeps from the reconstruction steps (a function of (seed, step): a
+resume replays it), and ``style_classifier_d_steps`` − 1 classification-only D steps on
+fresh crops follow it.
 
 Every loss comes from ``model/losses.py``'s assembly (``reconstruction_loss``,
 ``generator_adversarial_loss``, ``discriminator_loss_levels``), given the per-level
@@ -217,15 +219,30 @@ class Trainer:
         edges = [crop_edge(lc.style_classifier_crop, j, cells, self.whole_levels) for j in levels]
         return StyleCropBank(levels, edges, self.cfg.n_styles)
 
-    def _bank_put(self, style: int, targets: dict[int, torch.Tensor], it: int, r: int) -> None:
-        """Reconstruction step r of iteration ``it`` drew ``style``: its first view's real targets (level j →
-        (1, 1, …)) replace the style's crops."""
+    def _bank_put(self, style: int, targets: dict[int, torch.Tensor]) -> None:
+        """A reconstruction step drew ``style``: its first view's real targets (level j → (1, 1, …)) replace the
+        style's windows in the bank."""
         if self.bank is not None:
-            self.bank.put(style, targets, rng_for(self.tcfg.seed, it, 400 + r))
+            self.bank.put(style, targets)
+
+    def _classification_d_loss(self, it: int, k: int) -> tuple[torch.Tensor, float]:
+        """The k-th classification step of iteration ``it``: the classified levels' summed softmax cross-entropy
+        of D's style heads on one real crop per style (cut with ``rng_for(seed, it, 400 + k)``), and the
+        mean accuracy of their per-position argmax."""
+        levels = self.cfg.supervised_levels
+        classified = range(self.cfg.losses.style_classifier_from, len(levels))
+        rng, loss, acc = rng_for(self.tcfg.seed, it, 400 + k), 0.0, 0.0
+        for i in classified:
+            crops, styles = self.bank.batch(levels[i], rng)
+            logits = self.discs[i].logits(crops)
+            labels = real_style_targets(logits, styles)
+            loss = loss + style_classification_loss(logits, labels)
+            acc += (logits[:, :self.cfg.n_styles].argmax(1) == labels).float().mean().item() / len(classified)
+        return loss, acc
 
     def rebuild_style_bank(self) -> None:
         """Remake the bank at ``self.step`` by replaying the iterations before it, latest first, until
-        every style has its crops (the same crops the uninterrupted run holds: they are a function of
+        every style has its window (the same windows the uninterrupted run holds: they are a function of
         (seed, it, r)). Also fills it at once for a state branched from a run without the terms."""
         if self.bank is None:
             return
@@ -236,7 +253,7 @@ class Trainer:
                 if style in missing:
                     missing.discard(style)
                     view = self._views(self.style_sample(style, it * 8 + r), it, 200 + r, t.windows_per_step)[0]
-                    self._bank_put(style, {j: view.target(j) for j in self.bank.levels}, it, r)
+                    self._bank_put(style, {j: view.target(j) for j in self.bank.levels})
             if not missing:
                 return
 
@@ -326,7 +343,7 @@ class Trainer:
         loss.backward()
         self.opt_g.step()
         if not distilled:  # the first view's targets, already made for the loss
-            self._bank_put(int(self.reconstruction_style(it, r)), dict(zip(levels, targets[0])), it, r)
+            self._bank_put(int(self.reconstruction_style(it, r)), dict(zip(levels, targets[0])))
         out = {"recon": loss.item()}
         if self.teacher is not None:
             out["distilled"] = float(distilled)
@@ -375,18 +392,19 @@ class Trainer:
         d_fake = [d(o.detach()) for d, o in zip(self.discs, outs)]
         real_masks = [real.masks(j, tuple(dr.shape[2:]), cfg) for j, dr in zip(levels, d_real)]
         dl = discriminator_loss_levels(d_real, d_fake, real_masks, fake_masks, cfg)
-        if lc.style_classifier > 0 and self.bank is not None and self.bank.ready():  # one real crop per style
-            dl["cls"], dl["cls_acc"] = dl["total"].new_zeros(()), 0.0
-            for k in classified:
-                crops, styles = self.bank.batch(levels[k])
-                logits = self.discs[k].logits(crops)
-                labels = real_style_targets(logits, styles)
-                dl["cls"] = dl["cls"] + style_classification_loss(logits, labels)
-                dl["cls_acc"] += (logits[:, :cfg.n_styles].argmax(1) == labels).float().mean().item() / len(classified)
+        classify = lc.style_classifier > 0 and self.bank is not None and self.bank.ready()
+        if classify:  # one real crop per style
+            dl["cls"], dl["cls_acc"] = self._classification_d_loss(it, 0)
             dl["total"] = dl["total"] + lc.style_classifier * dl["cls"]
         self.opt_d.zero_grad(set_to_none=True)
         dl["total"].backward()
         self.opt_d.step()
+        for k in range(1, lc.style_classifier_d_steps if classify else 1):  # D's classification at its own pace
+            extra, acc = self._classification_d_loss(it, k)
+            self.opt_d.zero_grad(set_to_none=True)
+            (lc.style_classifier * extra).backward()
+            self.opt_d.step()
+            dl["cls_acc"] += (acc - dl["cls_acc"]) / (k + 1)  # the mean over the iteration's classification steps
         return {
             "g_total": g["total"].item(), "gan": g["gan"].item(), "down": g["down"].item(), "up": g["up"].item(),
             **({"fill": g["fill"].item()} if cfg.losses.gamma_fill > 0 else {}),

@@ -20,6 +20,7 @@ from tests.model.test_train import EXS, _cfg, _tcfg
 
 CLS = "warmup_centred_long_r1_fill_mismatch_offsets_cls"
 BASE = "warmup_centred_long_r1_fill_mismatch_offsets"
+CLSK = "warmup_centred_long_r1_fill_mismatch_offsets_clsk"
 
 
 def _ball(n: int, centre, radius: float) -> torch.Tensor:
@@ -75,19 +76,23 @@ def test_assigned_styles_weights_only_the_styled_voxels():
     assert style_classification_loss(logits, target, torch.zeros_like(weight)).item() == 0.0
 
 
-def test_the_bank_keeps_the_latest_crop_per_style_in_style_order():
+def test_the_bank_keeps_the_latest_window_per_style_and_cuts_crops_from_the_rng_it_is_given():
     bank = StyleCropBank(levels=(2, 3), edges=(8, 10), n_styles=3)
     assert not bank.ready()
-    rng = np.random.default_rng(0)
     a, b = _ball(16, (8, 8, 8), 4.0), _ball(20, (10, 10, 10), 5.0)
-    bank.put(2, {2: a, 3: b}, rng)
+    bank.put(2, {2: a, 3: b})
     assert not bank.ready()  # one style: nothing to tell apart
-    bank.put(0, {2: a, 3: b}, rng)
-    bank.put(2, {2: torch.zeros_like(a), 3: torch.zeros_like(b)}, rng)  # style 2 drawn again: replaced
-    crops, styles = bank.batch(2)
+    bank.put(0, {2: a, 3: b})
+    bank.put(2, {2: torch.zeros_like(a), 3: torch.zeros_like(b)})  # style 2 drawn again: replaced
+    crops, styles = bank.batch(2, np.random.default_rng(0))
     assert bank.ready() and styles.tolist() == [0, 2] and crops.shape == (2, 1, 8, 8, 8)
     assert crops[0].sum() > 0 and crops[1].sum() == 0
-    assert bank.batch(3)[0].shape == (2, 1, 10, 10, 10)
+    assert bank.batch(3, np.random.default_rng(0))[0].shape == (2, 1, 10, 10, 10)
+    # the same RNG state cuts the same crops; other states cut elsewhere on the surface
+    same = bank.batch(2, np.random.default_rng(0))[0]
+    assert torch.equal(same, crops)
+    others = [bank.batch(2, np.random.default_rng(seed))[0][0] for seed in range(1, 6)]
+    assert any(not torch.equal(o, crops[0]) for o in others)
 
 
 def test_config_refuses_a_classified_level_outside_the_pyramid_and_reads_old_files_as_off():
@@ -96,9 +101,14 @@ def test_config_refuses_a_classified_level_outside_the_pyramid_and_reads_old_fil
     with pytest.raises(DetailizeError, match="style_classifier_from"):  # a ModelConfig validates when made
         dataclasses.replace(cfg, losses=on)
     old = cfg.to_dict()
-    for key in ("style_classifier", "style_classifier_g", "style_classifier_from", "style_classifier_crop"):
+    for key in ("style_classifier", "style_classifier_g", "style_classifier_from", "style_classifier_crop",
+                "style_classifier_d_steps"):
         old["losses"].pop(key)
     assert ModelConfig.from_dict(old) == cfg and cfg.losses.style_classifier == 0
+    assert cfg.losses.style_classifier_d_steps == 1
+    for steps in (0, 2.5):
+        with pytest.raises(DetailizeError, match="style_classifier_d_steps"):
+            dataclasses.replace(cfg, losses=dataclasses.replace(cfg.losses, style_classifier_d_steps=steps))
 
 
 def test_an_offsets_state_branches_into_the_terms_which_train_d_and_g_and_resume_exactly(tmp_path):
@@ -123,7 +133,7 @@ def test_an_offsets_state_branches_into_the_terms_which_train_d_and_g_and_resume
     trainer.restore(state)
     assert trainer.step == 2 and trainer.bank is not None
     assert trainer.bank.styles() == [0, 1]  # both styles' crops replayed from the iterations before the branch
-    before = {j: trainer.bank.batch(j)[0].clone() for j in trainer.bank.levels}
+    before = {j: trainer.bank.batch(j, np.random.default_rng(0))[0].clone() for j in trainer.bank.levels}
     d_before = [p.detach().clone() for p in trainer.discs.parameters()]
     losses = trainer.iteration()
     assert losses["d_cls"] > 0 and losses["g_cls"] > 0 and 0 <= losses["d_cls_acc"] <= 1
@@ -132,7 +142,7 @@ def test_an_offsets_state_branches_into_the_terms_which_train_d_and_g_and_resume
     again = Trainer(EXS, branched.config, tcfg)
     again.restore(state)
     for j in again.bank.levels:
-        assert torch.equal(again.bank.batch(j)[0], before[j])
+        assert torch.equal(again.bank.batch(j, np.random.default_rng(0))[0], before[j])
     # and after the iteration, the crops the uninterrupted trainer holds are those a restore at step 3 makes
     next_state = trainer.checkpoint()
     assert next_state.training["recipe_branched_from"] == {"recipe": BASE, "step": 2}  # the branch stays on record
@@ -140,4 +150,33 @@ def test_an_offsets_state_branches_into_the_terms_which_train_d_and_g_and_resume
     third = Trainer(EXS, branched.config, tcfg)
     third.restore(folder / "next.pt")
     for j in third.bank.levels:
-        assert torch.equal(third.bank.batch(j)[0], trainer.bank.batch(j)[0])
+        assert torch.equal(third.bank.batch(j, np.random.default_rng(0))[0],
+                           trainer.bank.batch(j, np.random.default_rng(0))[0])
+
+
+def test_extra_classification_steps_move_d_further_and_log_the_mean_accuracy(tmp_path):
+    """With ``style_classifier_d_steps`` k > 1 the iteration takes k − 1 more classification-only steps of D's
+    optimizer: from one state, D's weights end further from where they were than with one step, and the same
+    iteration run twice gives the same weights (the extra steps' crops are a function of (seed, step))."""
+    from model.recipe_move import move_state_recipe
+    from model.recipes import CLS_D_STEPS, recipe_configs
+
+    cfg_o, t_o = recipe_configs(BASE, _cfg(), _tcfg(tmp_path, 2, recipe=BASE))
+    t_o = dataclasses.replace(t_o, warmup_iters=0)
+    res = train(EXS, cfg_o, t_o, resume=False)
+    cfg_k, _ = recipe_configs(CLSK, _cfg(), _tcfg(tmp_path, 2, recipe=CLSK))
+    assert cfg_k.losses.style_classifier_d_steps == CLS_D_STEPS > 1
+    moved = {}
+    for name in (CLS, CLSK, CLSK):
+        branched = move_state_recipe(load_checkpoint(res.checkpoint, training_state=True), name, branch=True)
+        tcfg = TrainConfig(**dict(branched.training["train_config"], out_dir=str(tmp_path / name),
+                                  betas=tuple(t_o.betas)))
+        trainer = Trainer(EXS, branched.config, tcfg)
+        trainer.restore(save_checkpoint(tmp_path / f"{name}.pt", branched))
+        d0 = torch.cat([p.detach().flatten().clone() for p in trainer.discs.parameters()])
+        losses = trainer.iteration()
+        d1 = torch.cat([p.detach().flatten() for p in trainer.discs.parameters()])
+        assert 0 <= losses["d_cls_acc"] <= 1
+        moved.setdefault(name, []).append(d1 - d0)
+    assert torch.equal(moved[CLSK][0], moved[CLSK][1])  # deterministic
+    assert moved[CLSK][0].norm() > 1.5 * moved[CLS][0].norm()

@@ -131,6 +131,12 @@ def test_a_mismatch_state_grows_the_modulation_keeping_its_outputs_and_trains_on
     assert new_g["param_groups"][1]["params"][: len(old_g["param_groups"][1]["params"])] == \
         old_g["param_groups"][1]["params"]
     assert branched.discriminators is ck.discriminators and branched.optimizers["d"] is ck.optimizers["d"]
+    # a state with a weight average grows it the same way (its own values kept, the maps at zero), and saves
+    averaged = {k: v * 0.5 if v.is_floating_point() else v for k, v in ck.generator.items()}
+    with_ema = move_state_recipe(dataclasses.replace(ck, generator_ema=averaged), FILM, branch=True)
+    assert all(torch.equal(v, with_ema.generator_ema[k]) for k, v in averaged.items())
+    assert all(not with_ema.generator_ema[k].any() for k in new)
+    save_checkpoint(tmp_path / "grown_ema.pt", with_ema)
 
     old_gen, grown = Generator(ck.config), Generator(branched.config)
     old_gen.load_state_dict(ck.generator)
