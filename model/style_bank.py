@@ -30,20 +30,26 @@ from torch.nn import functional as F
 from core.grid import ISO_LEVEL
 
 
-def surface_crop(target: Tensor, edge: int, rng: np.random.Generator) -> Tensor:
-    """An ``edge``³ cut of ``target`` (1, 1, X, Y, Z) around a random surface voxel.
-
-    The surface is every voxel above ``ISO_LEVEL`` with a 6-neighbour at or below it (the
-    crop's centre when there is none). The cut stays inside the grid; an axis shorter than
-    ``edge`` is zero-padded at its end (empty space). Returns (1, 1, edge, edge, edge).
-    """
+def surface_voxels(target: Tensor) -> Tensor:
+    """The surface of ``target`` (1, 1, X, Y, Z): every voxel above ``ISO_LEVEL`` with a 6-neighbour at or
+    below it, as (S, 3) int64 indices."""
     occ = target[0, 0] > ISO_LEVEL
     inner = occ.clone()
     for axis in range(3):
         for shift in (1, -1):
             inner &= torch.roll(occ, shift, axis)
-    surface = (occ & ~inner).nonzero()
-    size = np.array(occ.shape)
+    return (occ & ~inner).nonzero()
+
+
+def surface_crop(target: Tensor, edge: int, rng: np.random.Generator, surface: Tensor | None = None) -> Tensor:
+    """An ``edge``³ cut of ``target`` (1, 1, X, Y, Z) around a random voxel of its surface
+    (``surface_voxels``, or the caller's ``surface`` of the same target, made once for many cuts).
+
+    The crop's centre is the grid's when there is no surface. The cut stays inside the grid; an
+    axis shorter than ``edge`` is zero-padded at its end (empty space). Returns (1, 1, edge, edge, edge).
+    """
+    surface = surface_voxels(target) if surface is None else surface
+    size = np.array(target.shape[2:])
     centre = size // 2 if len(surface) == 0 else surface[int(rng.integers(len(surface)))].cpu().numpy()
     lo = np.clip(centre - edge // 2, 0, np.maximum(size - edge, 0))
     cut = target[..., lo[0]:lo[0] + edge, lo[1]:lo[1] + edge, lo[2]:lo[2] + edge]
@@ -66,12 +72,14 @@ class StyleCropBank:
     def __init__(self, levels: Sequence[int], edges: Sequence[int], n_styles: int) -> None:
         self.levels, self.edges, self.n_styles = tuple(levels), dict(zip(levels, edges)), n_styles
         self.targets: dict[int, dict[int, Tensor]] = {j: {} for j in self.levels}
+        self.surfaces: dict[int, dict[int, Tensor]] = {j: {} for j in self.levels}  # their surface_voxels
 
     def put(self, style: int, targets: dict[int, Tensor]) -> None:
         """Replace ``style``'s windows with ``targets`` (level j → (1, 1, X, Y, Z) real target; kept, not copied:
         the caller does not write to them)."""
         for j in self.levels:
             self.targets[j][style] = targets[j].detach()
+            self.surfaces[j][style] = surface_voxels(self.targets[j][style])  # once, not at every batch
 
     def styles(self) -> list[int]:
         """The styles that have windows, in index order."""
@@ -85,5 +93,5 @@ class StyleCropBank:
         """Level j: one ``surface_crop`` of every style's window, cut with ``rng`` in style order
         (B, 1, e, e, e), and their styles (B,) int64."""
         styles = self.styles()
-        crops = [surface_crop(self.targets[j][s], self.edges[j], rng) for s in styles]
+        crops = [surface_crop(self.targets[j][s], self.edges[j], rng, self.surfaces[j][s]) for s in styles]
         return torch.cat(crops), torch.tensor(styles, dtype=torch.int64)

@@ -87,6 +87,8 @@ def test_the_bank_keeps_the_latest_window_per_style_and_cuts_crops_from_the_rng_
     crops, styles = bank.batch(2, np.random.default_rng(0))
     assert bank.ready() and styles.tolist() == [0, 2] and crops.shape == (2, 1, 8, 8, 8)
     assert crops[0].sum() > 0 and crops[1].sum() == 0
+    # the surface the bank keeps at put gives the cut surface_crop makes of the window alone
+    assert torch.equal(crops[:1], surface_crop(a, 8, np.random.default_rng(0)))
     assert bank.batch(3, np.random.default_rng(0))[0].shape == (2, 1, 10, 10, 10)
     # the same RNG state cuts the same crops; other states cut elsewhere on the surface
     same = bank.batch(2, np.random.default_rng(0))[0]
