@@ -46,6 +46,15 @@ class DownLoss(str, Enum):
     CODE_HINGE = "code_hinge"
 
 
+class TextureMode(str, Enum):
+    """Which placement-free style term ``LossConfig.texture_weight`` weighs (``model/texture_stats.py``)."""
+
+    #: Fixed random features' band-weighted mean and second moment against the style's window's.
+    STATS = "stats"
+    #: Bidirectional nearest-patch distance between the output's surface patches and the window's.
+    PATCHES = "patches"
+
+
 class TargetSmoothing(str, Enum):
     """How the per-level reconstruction / "real" targets are smoothed."""
 
@@ -173,6 +182,14 @@ class LossConfig:
             the D step, the others are classification-only steps of D's optimizer on fresh crops.
             At one step of D's 1e-4 per iteration a warmed classifier's accuracy drifted down
             (0.33 → 0.25 over 450 iterations) while the generator moved.
+        texture_weight: G's weight (0 = off, as in the paper) of a placement-free style term
+            (``model/texture_stats.py``) at the style bank's levels (``style_classifier_from`` on): the
+            adversarial output's surface in each style's voxels against that style's latest real window,
+            asking for the exemplar's kind of surface, not its voxels at their places.
+        texture_mode: which term: ``STATS`` (random-feature mean and second moment) or ``PATCHES``
+            (bidirectional nearest surface patch).
+        texture_band: half-width (voxels of the level) of the surface band the statistics are taken over.
+        texture_patch: edge (voxels of the level) of the ``PATCHES`` term's patches.
     """
 
     beta_recon: float = 10.0
@@ -196,6 +213,10 @@ class LossConfig:
     style_classifier_from: int = 2
     style_classifier_crop: int = 40
     style_classifier_d_steps: int = 1
+    texture_weight: float = 0.0
+    texture_mode: TextureMode = TextureMode.STATS
+    texture_band: int = 2
+    texture_patch: int = 8
 
     def up_weight(self, k: int) -> float:
         """γ_up times the factor of the k-th supervised output (``up_level_weights``)."""
@@ -544,16 +565,22 @@ def _validate(cfg: ModelConfig) -> None:
         raise bad("slopes must lie in (0, 1)", "leaky_slope", "the paper uses 0.02 and 0.002")
     lc = cfg.losses
     for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma",
-                 "gamma_fill", "style_mismatch", "style_classifier", "style_classifier_g"):
+                 "gamma_fill", "style_mismatch", "style_classifier", "style_classifier_g", "texture_weight"):
         if getattr(lc, name) < 0:
             raise bad(f"{name} must be ≥ 0", f"losses.{name}", "weights are non-negative")
     if lc.up_level_weights and (len(lc.up_level_weights) != len(supervised) or min(lc.up_level_weights) < 0):
         raise bad(f"up_level_weights needs {len(supervised)} non-negative factors, got {lc.up_level_weights}",
                    "losses.up_level_weights", "one factor per supervised level, or () for 1 everywhere")
-    classify = lc.style_classifier > 0 or lc.style_classifier_g > 0
+    classify = lc.style_classifier > 0 or lc.style_classifier_g > 0 or lc.texture_weight > 0
     if classify and (not 0 <= lc.style_classifier_from < len(supervised) or lc.style_classifier_crop < 8):
         raise bad(f"style_classifier_from must index one of the {len(supervised)} supervised levels and the crop "
                   f"be ≥ 8 voxels", "losses.style_classifier_from", "e.g. 2 (the two finest levels) and 40")
+    if not isinstance(lc.texture_band, int) or not 1 <= lc.texture_band <= 8:
+        raise bad(f"texture_band must be a whole number in [1, 8], got {lc.texture_band!r}",
+                  "losses.texture_band", "2 (voxels of the level either side of the surface)")
+    if not isinstance(lc.texture_patch, int) or not 2 <= lc.texture_patch <= 16 or lc.texture_patch % 2:
+        raise bad(f"texture_patch must be an even whole number in [2, 16], got {lc.texture_patch!r}",
+                  "losses.texture_patch", "8 (voxels of the level)")
     if not isinstance(lc.style_classifier_d_steps, int) or lc.style_classifier_d_steps < 1:
         raise bad(f"style_classifier_d_steps must be a whole number ≥ 1, got {lc.style_classifier_d_steps!r}",
                   "losses.style_classifier_d_steps", "1 (the classification in the D step only) or e.g. 4")
@@ -611,6 +638,10 @@ def _losses_from(data: Any, path: str) -> LossConfig:
         style_classifier_from=r.int("style_classifier_from", default=2),
         style_classifier_crop=r.int("style_classifier_crop", default=40),
         style_classifier_d_steps=r.int("style_classifier_d_steps", default=1),
+        texture_weight=r.float("texture_weight", default=0.0),  # absent before the terms: off
+        texture_mode=r.enum("texture_mode", TextureMode, default=TextureMode.STATS),
+        texture_band=r.int("texture_band", default=2),
+        texture_patch=r.int("texture_patch", default=8),
     )
     r.done()
     return lc

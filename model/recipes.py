@@ -112,6 +112,15 @@ a resume must name the same one.
   but G's classification loss stayed above chance; against the control clsk lost self-reconstruction (−0.021) and
   matched Cls (+0.066), and FiLM added LP-detail (+0.024 over clsk) of no style (specificity −0.034): not kept
   (``model/weights/things_selfrec.md``).
+- ``warmup_centred_long_r1_fill_mismatch_offsets_texp`` (``_strong``): ``…_offsets`` with the bidirectional
+  nearest-patch term (``LossConfig.texture_weight`` = ``TEXTURE_PATCH_WEIGHT``, or ``TEXTURE_PATCH_WEIGHT_STRONG``;
+  ``texture_mode`` patches; ``model/texture_stats.py``) at the two finest levels: the adversarial output's surface
+  patches in each style against that style's bank window, both ways. Every earlier style signal was tied to a
+  place (reconstruction) or to a learnt head that could be eroded (the style heads); this one is neither. Only
+  the losses differ, so an offsets state branches into it.
+- ``warmup_centred_long_r1_fill_mismatch_offsets_tex`` (``_strong``): the same with the random-feature statistics
+  term (``TEXTURE_WEIGHT`` / ``TEXTURE_WEIGHT_STRONG``). Kept as a recipe for the record; its statistics follow a
+  shape's edges more than its detail (the module's docstring), so it was stopped after 40 iterations.
 - ``distill``: ``warmup``, and half of the reconstruction steps (``DISTILL_FRAC``) take as
   target the example-based ``quilt`` detailizer's output on an augmented training content
   (new shapes, a random style per part) instead of an exemplar as itself
@@ -123,7 +132,7 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING, Callable
 
-from model.config import ModelConfig
+from model.config import ModelConfig, TextureMode
 
 if TYPE_CHECKING:  # the names are read by the CLI at start-up: keep this module light
     from model.train_config import TrainConfig
@@ -153,6 +162,14 @@ CLS_D_WEIGHT = 1.0
 CLS_G_WEIGHT = 0.2
 #: D classification steps per iteration in ``warmup_centred_long_r1_fill_mismatch_offsets_clsk`` (``_film``).
 CLS_D_STEPS = 4
+#: G's weight on the style-statistics term in ``warmup_centred_long_r1_fill_mismatch_offsets_tex`` (``_strong``):
+#: between real windows the term is ~0.4 within a style and ~0.5 across styles at each of the two fine levels.
+TEXTURE_WEIGHT = 2.0
+TEXTURE_WEIGHT_STRONG = 8.0
+#: G's weight on the nearest-patch term in ``warmup_centred_long_r1_fill_mismatch_offsets_texp``.
+TEXTURE_PATCH_WEIGHT = 20.0
+#: …and in ``…_texp_strong``: at 20 the term is ~4–6 of G's adversarial total against a GAN term of ~3.5.
+TEXTURE_PATCH_WEIGHT_STRONG = 60.0
 #: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
 DISTILL_FRAC = 0.5
 
@@ -275,6 +292,13 @@ def _warmup_centred_long_r1_fill_mismatch_offsets_clsk_film(m: ModelConfig,
     return dataclasses.replace(m, style_modulation=True), t
 
 
+def _warmup_centred_long_r1_fill_mismatch_offsets_tex(m: ModelConfig, t: TrainConfig, weight: float = TEXTURE_WEIGHT,
+                                                       mode: TextureMode = TextureMode.STATS,
+                                                       ) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill_mismatch_offsets(m, t)
+    return dataclasses.replace(m, losses=dataclasses.replace(m.losses, texture_weight=weight, texture_mode=mode)), t
+
+
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     m, t = _warmup(m, t)
     return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
@@ -326,6 +350,22 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
                                                                "with every level's features modulated by the style "
                                                                "(FiLM per coarse cell)",
                                                                _warmup_centred_long_r1_fill_mismatch_offsets_clsk_film),
+    "warmup_centred_long_r1_fill_mismatch_offsets_tex": ("warmup_centred_long_r1_fill_mismatch_offsets with the "
+                                                         "style-statistics term at 128³ and 256³ "
+                                                         f"(weight {TEXTURE_WEIGHT:g})",
+                                                         _warmup_centred_long_r1_fill_mismatch_offsets_tex),
+    "warmup_centred_long_r1_fill_mismatch_offsets_tex_strong": (
+        f"warmup_centred_long_r1_fill_mismatch_offsets_tex at weight {TEXTURE_WEIGHT_STRONG:g}",
+        lambda m, t: _warmup_centred_long_r1_fill_mismatch_offsets_tex(m, t, TEXTURE_WEIGHT_STRONG)),
+    "warmup_centred_long_r1_fill_mismatch_offsets_texp": (
+        "warmup_centred_long_r1_fill_mismatch_offsets with the bidirectional nearest-patch term at 128³ and 256³ "
+        f"(weight {TEXTURE_PATCH_WEIGHT:g})",
+        lambda m, t: _warmup_centred_long_r1_fill_mismatch_offsets_tex(m, t, TEXTURE_PATCH_WEIGHT,
+                                                                        TextureMode.PATCHES)),
+    "warmup_centred_long_r1_fill_mismatch_offsets_texp_strong": (
+        f"warmup_centred_long_r1_fill_mismatch_offsets_texp at weight {TEXTURE_PATCH_WEIGHT_STRONG:g}",
+        lambda m, t: _warmup_centred_long_r1_fill_mismatch_offsets_tex(m, t, TEXTURE_PATCH_WEIGHT_STRONG,
+                                                                        TextureMode.PATCHES)),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

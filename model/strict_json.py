@@ -91,8 +91,8 @@ class Reader:
                 raise bad(f"expected an integer, got {x!r}", f"{self.path}.{key}[{i}]", "use integers")
         return v
 
-    def enum(self, key: str, kind: type[Enum]) -> Any:
-        v = self.get(key)
+    def enum(self, key: str, kind: type[Enum], default: Any = _MISSING) -> Any:
+        v = self.get(key, default)
         try:
             return kind(v)
         except ValueError:

@@ -23,7 +23,8 @@ as softmax logits: step 2 charges G's output for each part's assigned style, ste
 trains D on a batch of real crops, one per style, cut from the windows that
 ``model/style_bank.py`` keeps from the reconstruction steps (a function of (seed, step): a
 resume replays it), and ``style_classifier_d_steps`` − 1 classification-only D steps on
-fresh crops follow it.
+fresh crops follow it. With ``texture_weight`` > 0 step 2 also charges the same levels' surface
+in each style against that style's bank window, placement-free (``model/texture_stats.py``).
 
 Every loss comes from ``model/losses.py``'s assembly (``reconstruction_loss``,
 ``generator_adversarial_loss``, ``discriminator_loss_levels``), given the per-level
@@ -102,6 +103,7 @@ from model.networks import Generator, build_discriminators
 from model.previews import preview_samples, write_preview
 from model.strict_json import to_plain
 from model.style_bank import StyleCropBank, crop_edge
+from model.texture_stats import TextureTerm
 from model.train_config import TrainConfig, TrainResult  # noqa: F401 - this module's API
 from model.views import SampleView, check_window, surface_window
 from model.windows import Window, halo_cells, window_forward, windows_forward  # noqa: F401 - this module's API
@@ -168,6 +170,7 @@ class Trainer:
         self._fixed_styles: dict[int, Sample] = {}  # style → its sample, when the placement is fixed
         self.prefetch: ContentPrefetcher | None = None  # set by ``train`` when ``data_workers`` > 0
         self.bank = self._style_bank()  # the style classification terms' real crops, or None (off)
+        self.texture = TextureTerm(cfg.losses).to(self.device) if cfg.losses.texture_weight > 0 else None
 
     # ------------------------------------------------------------------ tensors
 
@@ -212,7 +215,7 @@ class Trainer:
         coarse cells at 2^(j+1) voxels each) where the level is windowed.
         """
         lc, t = self.cfg.losses, self.tcfg
-        if lc.style_classifier <= 0 and lc.style_classifier_g <= 0:
+        if lc.style_classifier <= 0 and lc.style_classifier_g <= 0 and lc.texture_weight <= 0:
             return None
         levels = self.cfg.supervised_levels[lc.style_classifier_from:]
         cells = t.window_cells if self.whole_levels < self.cfg.n_levels else 0
@@ -382,6 +385,11 @@ class Trainer:
             g["cls"] = sum(style_classification_loss(d_logits[k], *assigned_styles(fake_masks[k].style))
                            for k in classified)
             g["total"] = g["total"] + lc.style_classifier_g * g["cls"]
+        if self.texture is not None:  # each style's surface statistics against its latest real window's
+            rng = rng_for(self.tcfg.seed, it, 500)
+            g["tex"] = sum(self.texture(outs[k], v.output_styles(levels[k]), self.bank.targets[levels[k]], rng)
+                           for k in classified)
+            g["total"] = g["total"] + lc.texture_weight * g["tex"]
         self.opt_g.zero_grad(set_to_none=True)
         g["total"].backward()
         self.opt_g.step()
@@ -410,7 +418,7 @@ class Trainer:
             **({"fill": g["fill"].item()} if cfg.losses.gamma_fill > 0 else {}),
             "d_total": dl["total"].item(), "d_real": dl["real"].item(), "d_fake": dl["fake"].item(),
             **({"d_mismatch": dl["mismatch"].item()} if cfg.losses.style_mismatch > 0 else {}),
-            **({"g_cls": g["cls"].item()} if "cls" in g else {}),
+            **({k: g[n].item() for k, n in (("g_cls", "cls"), ("g_tex", "tex")) if n in g}),
             **({"d_cls": dl["cls"].item(), "d_cls_acc": round(dl["cls_acc"], 4)} if "cls" in dl else {}),
         }
 

@@ -73,6 +73,14 @@ class SampleView:
         return StyledCoarse(self._crop(s.coarse_occupancy, j, 1), self._crop(s.coarse_labels, j, 1).astype(np.int64),
                             s.assignment)
 
+    def output_styles(self, j: int) -> torch.Tensor:
+        """The style of every voxel of level j's output on these cells, (X, Y, Z) int64 at 2^(j+1)× the cells
+        (every cell's part's assigned style; empty cells carry their nearest part's, as the labels do)."""
+        st = self.styled(j)
+        cells = torch.as_tensor(np.asarray(st.assignment, dtype=np.int64)[st.labels])
+        f = 2 ** (j + 1)
+        return cells.repeat_interleave(f, 0).repeat_interleave(f, 1).repeat_interleave(f, 2).to(self.device)
+
     def masks(self, j: int, d_shape: tuple[int, ...], cfg: ModelConfig) -> DOutputMasks:
         m = self.styled(j).masks(j, cfg.discriminator(j), d_shape, cfg.n_styles)
         return DOutputMasks(m.style[None], m.global_[None])
