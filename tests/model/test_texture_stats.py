@@ -156,4 +156,5 @@ def test_an_offsets_state_branches_into_the_term_which_moves_g_deterministically
         losses = trainer.iteration()
         runs.append((losses, torch.cat([p.detach().flatten() for p in trainer.gen.parameters()])))
     assert runs[0][0]["g_tex"] > 0 and runs[0][0]["g_tex"] == runs[1][0]["g_tex"]
-    assert torch.equal(runs[0][1], runs[1][1])
+    # the patch gather's backward adds overlapping patches in thread order: equal to float rounding, not bit for bit
+    assert torch.allclose(runs[0][1], runs[1][1], rtol=0, atol=1e-6)
