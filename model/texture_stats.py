@@ -165,7 +165,8 @@ class TextureTerm(nn.Module):
             if s not in real:
                 continue
             mine = (styles == s).to(output.dtype)[None, None]
-            if float((bands[0] * mine).sum()) < MIN_BAND_VOXELS:
+            n = float((bands[0] * mine).sum())
+            if n < MIN_BAND_VOXELS:
                 continue
             if feats is not None:
                 weights, m = [], mine
@@ -182,7 +183,7 @@ class TextureTerm(nn.Module):
                     library = band_patches(real[s], at, self.edge)
                 at = _pick((bands[0] * mine)[0, 0] > 0, PATCHES_OUT, rng)
                 per_style.append(bidirectional_patch_distance(band_patches(output, at, self.edge), library))
-            shares.append(float((bands[0] * mine).sum()))
+            shares.append(n)
         if not per_style:
             return output.sum() * 0.0
         total = sum(shares)

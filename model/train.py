@@ -385,7 +385,7 @@ class Trainer:
             g["cls"] = sum(style_classification_loss(d_logits[k], *assigned_styles(fake_masks[k].style))
                            for k in classified)
             g["total"] = g["total"] + lc.style_classifier_g * g["cls"]
-        if self.texture is not None:  # each style's surface statistics against its latest real window's
+        if self.texture is not None:  # each style's surface against its latest real window's (texture_mode)
             rng = rng_for(self.tcfg.seed, it, 500)
             g["tex"] = sum(self.texture(outs[k], v.output_styles(levels[k]), self.bank.targets[levels[k]], rng)
                            for k in classified)
