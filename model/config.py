@@ -190,6 +190,10 @@ class LossConfig:
             (bidirectional nearest surface patch).
         texture_band: half-width (voxels of the level) of the surface band the statistics are taken over.
         texture_patch: edge (voxels of the level) of the ``PATCHES`` term's patches.
+        texture_contrast: G's weight (0 = off) of the nearest-patch style classification at the same
+            levels (``model/texture_stats.py``'s ``PatchContrast``; its patches are ``texture_patch``
+            voxels in the ``texture_band``): every output patch should be nearer its own style's window
+            than any other style's. Independent of ``texture_weight``.
     """
 
     beta_recon: float = 10.0
@@ -217,6 +221,7 @@ class LossConfig:
     texture_mode: TextureMode = TextureMode.STATS
     texture_band: int = 2
     texture_patch: int = 8
+    texture_contrast: float = 0.0
 
     def up_weight(self, k: int) -> float:
         """γ_up times the factor of the k-th supervised output (``up_level_weights``)."""
@@ -565,13 +570,15 @@ def _validate(cfg: ModelConfig) -> None:
         raise bad("slopes must lie in (0, 1)", "leaky_slope", "the paper uses 0.02 and 0.002")
     lc = cfg.losses
     for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma",
-                 "gamma_fill", "style_mismatch", "style_classifier", "style_classifier_g", "texture_weight"):
+                 "gamma_fill", "style_mismatch", "style_classifier", "style_classifier_g", "texture_weight",
+                 "texture_contrast"):
         if getattr(lc, name) < 0:
             raise bad(f"{name} must be ≥ 0", f"losses.{name}", "weights are non-negative")
     if lc.up_level_weights and (len(lc.up_level_weights) != len(supervised) or min(lc.up_level_weights) < 0):
         raise bad(f"up_level_weights needs {len(supervised)} non-negative factors, got {lc.up_level_weights}",
                    "losses.up_level_weights", "one factor per supervised level, or () for 1 everywhere")
-    classify = lc.style_classifier > 0 or lc.style_classifier_g > 0 or lc.texture_weight > 0
+    classify = (lc.style_classifier > 0 or lc.style_classifier_g > 0 or lc.texture_weight > 0
+                or lc.texture_contrast > 0)
     if classify and (not 0 <= lc.style_classifier_from < len(supervised) or lc.style_classifier_crop < 8):
         raise bad(f"style_classifier_from must index one of the {len(supervised)} supervised levels and the crop "
                   f"be ≥ 8 voxels", "losses.style_classifier_from", "e.g. 2 (the two finest levels) and 40")
@@ -642,6 +649,7 @@ def _losses_from(data: Any, path: str) -> LossConfig:
         texture_mode=r.enum("texture_mode", TextureMode, default=TextureMode.STATS),
         texture_band=r.int("texture_band", default=2),
         texture_patch=r.int("texture_patch", default=8),
+        texture_contrast=r.float("texture_contrast", default=0.0),  # absent before the term: off
     )
     r.done()
     return lc

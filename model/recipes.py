@@ -118,6 +118,10 @@ a resume must name the same one.
   patches in each style against that style's bank window, both ways. Every earlier style signal was tied to a
   place (reconstruction) or to a learnt head that could be eroded (the style heads); this one is neither. Only
   the losses differ, so an offsets state branches into it.
+- ``warmup_centred_long_r1_fill_mismatch_offsets_texpc`` (``_strong``): ``…_texp`` and the nearest-patch style
+  classification (``LossConfig.texture_contrast`` = ``TEXTURE_CONTRAST_WEIGHT``, or ``…_STRONG``;
+  ``PatchContrast``): texp's patches were the exemplar's but of kinds every style has (LP-detail up, specificity
+  down); this asks each patch to be nearer its own style's window than any other's. An offsets state branches in.
 - ``warmup_centred_long_r1_fill_mismatch_offsets_tex`` (``_strong``): the same with the random-feature statistics
   term (``TEXTURE_WEIGHT`` / ``TEXTURE_WEIGHT_STRONG``). Kept as a recipe for the record; its statistics follow a
   shape's edges more than its detail (the module's docstring), so it was stopped after 40 iterations.
@@ -170,6 +174,11 @@ TEXTURE_WEIGHT_STRONG = 8.0
 TEXTURE_PATCH_WEIGHT = 20.0
 #: …and in ``…_texp_strong``: at 20 the term is ~4–6 of G's adversarial total against a GAN term of ~3.5.
 TEXTURE_PATCH_WEIGHT_STRONG = 60.0
+#: G's weight on the nearest-patch style classification in ``…_offsets_texpc``: ~2.7 a level on real shapes
+#: (``scripts/patch_contrast_tau.py``), ~5.5 over the two levels, level with the patch term's ~4.6 at 20.
+TEXTURE_CONTRAST_WEIGHT = 1.0
+#: …and in ``…_texpc_strong``.
+TEXTURE_CONTRAST_WEIGHT_STRONG = 4.0
 #: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
 DISTILL_FRAC = 0.5
 
@@ -299,6 +308,13 @@ def _warmup_centred_long_r1_fill_mismatch_offsets_tex(m: ModelConfig, t: TrainCo
     return dataclasses.replace(m, losses=dataclasses.replace(m.losses, texture_weight=weight, texture_mode=mode)), t
 
 
+def _warmup_centred_long_r1_fill_mismatch_offsets_texpc(m: ModelConfig, t: TrainConfig,
+                                                         weight: float = TEXTURE_CONTRAST_WEIGHT,
+                                                         ) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill_mismatch_offsets_tex(m, t, TEXTURE_PATCH_WEIGHT, TextureMode.PATCHES)
+    return dataclasses.replace(m, losses=dataclasses.replace(m.losses, texture_contrast=weight)), t
+
+
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     m, t = _warmup(m, t)
     return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
@@ -366,6 +382,12 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
         f"warmup_centred_long_r1_fill_mismatch_offsets_texp at weight {TEXTURE_PATCH_WEIGHT_STRONG:g}",
         lambda m, t: _warmup_centred_long_r1_fill_mismatch_offsets_tex(m, t, TEXTURE_PATCH_WEIGHT_STRONG,
                                                                         TextureMode.PATCHES)),
+    "warmup_centred_long_r1_fill_mismatch_offsets_texpc": (
+        "warmup_centred_long_r1_fill_mismatch_offsets_texp with the nearest-patch style classification "
+        f"(weight {TEXTURE_CONTRAST_WEIGHT:g})", _warmup_centred_long_r1_fill_mismatch_offsets_texpc),
+    "warmup_centred_long_r1_fill_mismatch_offsets_texpc_strong": (
+        f"warmup_centred_long_r1_fill_mismatch_offsets_texpc at weight {TEXTURE_CONTRAST_WEIGHT_STRONG:g}",
+        lambda m, t: _warmup_centred_long_r1_fill_mismatch_offsets_texpc(m, t, TEXTURE_CONTRAST_WEIGHT_STRONG)),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

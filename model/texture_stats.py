@@ -28,13 +28,21 @@ output's surface band (``LossConfig.texture_mode``):
   appears). The first half alone is met by flat faces, which every exemplar has; the second
   asks for the detail.
 
+``PatchContrast`` (``LossConfig.texture_contrast``), beside either: every output band patch of
+style s is classified among the styles with a window by its nearest patch in each style's window
+(softmax of −distance / ``CONTRAST_TAU``), with cross-entropy towards s. The patch term made the
+output of exemplar patches, but of patches every style has: at 17,603 it raised LP-detail and
+lowered style specificity (``model/weights/things_selfrec.md``); this term pays only for patches
+nearer the assigned style's than every other's. A flat face is equally near in every window:
+its loss is ln N whatever G does, so it carries almost no gradient.
+
 The band of a grid is the voxels within ``texture_band`` voxels of its own (detached)
 iso-surface: inside and outside voxels are constant and would weigh the term by the crop's fill.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import torch
@@ -53,6 +61,10 @@ MIN_BAND_VOXELS = 64
 #: ``PATCHES``: most patches drawn from the output's band of one style, and from the real window's band.
 PATCHES_OUT = 256
 PATCHES_REAL = 1024
+#: ``PatchContrast``: band patches drawn from each style's window for its library, and the softmax temperature
+#: (per-voxel squared distance). See ``scripts/patch_contrast_tau.py`` for how it was chosen.
+CONTRAST_REAL = 256
+CONTRAST_TAU = 0.02
 
 
 class TextureFeatures(nn.Module):
@@ -79,18 +91,21 @@ class TextureFeatures(nn.Module):
         return feats
 
     def bands(self, occupancy: Tensor, band: int) -> list[Tensor]:
-        """The surface band of ``occupancy`` (B, 1, X, Y, Z), detached, at every layer's resolution:
-        voxels within ``band`` voxels of a voxel on the other side of ``ISO_LEVEL``, as {0, 1} floats."""
-        occ = (occupancy.detach() > ISO_LEVEL).float()
-        k = 2 * band + 1
-        near_full = F.max_pool3d(occ, k, 1, band)
-        near_empty = F.max_pool3d(1.0 - occ, k, 1, band)
-        m, out = near_full * near_empty, []
+        """``surface_band`` of ``occupancy`` (B, 1, X, Y, Z) at every layer's resolution."""
+        m, out = surface_band(occupancy, band), []
         for s in self.strides:
             if s > 1:
                 m = F.max_pool3d(m, s, s, ceil_mode=True)
             out.append(m)
         return out
+
+
+def surface_band(occupancy: Tensor, band: int) -> Tensor:
+    """The surface band of ``occupancy`` (B, 1, X, Y, Z), detached, same shape: voxels within ``band``
+    voxels of a voxel on the other side of ``ISO_LEVEL``, as {0, 1} floats."""
+    occ = (occupancy.detach() > ISO_LEVEL).float()
+    k = 2 * band + 1
+    return F.max_pool3d(occ, k, 1, band) * F.max_pool3d(1.0 - occ, k, 1, band)
 
 
 def weighted_stats(feats: list[Tensor], weights: list[Tensor]) -> list[tuple[Tensor, Tensor]]:
@@ -123,10 +138,21 @@ def band_patches(grid: Tensor, centres: Tensor, edge: int) -> Tensor:
     return padded[idx[..., 0], idx[..., 1], idx[..., 2]]
 
 
+def squared_distances(mine: Tensor, real: Tensor) -> Tensor:
+    """(P, Q) |p − q|² between the patches (P, D) and (Q, D)."""
+    return (mine.pow(2).sum(1, keepdim=True) + real.pow(2).sum(1)[None] - 2.0 * mine @ real.t()).clamp_min(0.0)
+
+
 def bidirectional_patch_distance(mine: Tensor, real: Tensor) -> Tensor:
     """mean_p min_q |p − q|² + mean_q min_p |p − q|², per voxel, of patches (P, D) and (Q, D)."""
-    d = (mine.pow(2).sum(1, keepdim=True) + real.pow(2).sum(1)[None] - 2.0 * mine @ real.t()).clamp_min(0.0)
+    d = squared_distances(mine, real)
     return (d.min(1).values.mean() + d.min(0).values.mean()) / mine.shape[1]
+
+
+def nearest_style_logits(mine: Tensor, libraries: Sequence[Tensor], tau: float = CONTRAST_TAU) -> Tensor:
+    """(P, N) logits −min_q |p − q|² / (D · tau) of every patch (P, D) against each library (Q_n, D)."""
+    d = torch.stack([squared_distances(mine, lib).min(1).values for lib in libraries], 1)
+    return -d / (mine.shape[1] * tau)
 
 
 def _pick(mask: Tensor, most: int, rng: np.random.Generator) -> Tensor:
@@ -135,6 +161,11 @@ def _pick(mask: Tensor, most: int, rng: np.random.Generator) -> Tensor:
     if len(where) > most:
         where = where[torch.as_tensor(np.sort(rng.choice(len(where), most, replace=False)), device=where.device)]
     return where
+
+
+def _band_patches_of(real: Tensor, band: int, edge: int, most: int, rng: np.random.Generator) -> Tensor:
+    """Up to ``most`` ``edge``³ patches (P, edge³) centred in the surface band of a real window (1, 1, …)."""
+    return band_patches(real, _pick(surface_band(real, band)[0, 0] > 0, most, rng), edge)
 
 
 class TextureTerm(nn.Module):
@@ -179,12 +210,47 @@ class TextureTerm(nn.Module):
                 per_style.append(stats_distance(weighted_stats(feats, weights), target))
             else:
                 with torch.no_grad():
-                    at = _pick(f.bands(real[s], self.band)[0][0, 0] > 0, PATCHES_REAL, rng)
-                    library = band_patches(real[s], at, self.edge)
+                    library = _band_patches_of(real[s], self.band, self.edge, PATCHES_REAL, rng)
                 at = _pick((bands[0] * mine)[0, 0] > 0, PATCHES_OUT, rng)
                 per_style.append(bidirectional_patch_distance(band_patches(output, at, self.edge), library))
             shares.append(n)
         if not per_style:
             return output.sum() * 0.0
+        total = sum(shares)
+        return sum(d * (n / total) for d, n in zip(per_style, shares))  # type: ignore[return-value]
+
+
+class PatchContrast(nn.Module):
+    """``LossConfig.texture_contrast``'s term of one generated level: each style's band patches
+    classified among the styles by their nearest window patch (the module docstring)."""
+
+    def __init__(self, lc: LossConfig) -> None:
+        super().__init__()
+        self.band, self.edge = lc.texture_band, lc.texture_patch
+
+    def forward(self, output: Tensor, styles: Tensor, real: Mapping[int, Tensor], rng: np.random.Generator) -> Tensor:
+        """The term of one level; arguments as ``TextureTerm.forward``.
+
+        Returns:
+            A scalar: Σ_s share_s · mean cross-entropy of s's output patches towards s among the styles of
+            ``real`` (ln N at no preference), over the styles with a window and at least ``MIN_BAND_VOXELS``
+            band voxels; 0 (still in the graph) when none has or fewer than two styles have a window.
+        """
+        order = sorted(real)
+        band = surface_band(output, self.band)[0, 0]
+        charged = [s for s in torch.unique(styles).tolist()
+                   if s in real and float((band * (styles == s)).sum()) >= MIN_BAND_VOXELS]
+        if len(order) < 2 or not charged:
+            return output.sum() * 0.0
+        with torch.no_grad():
+            libraries = [_band_patches_of(real[t], self.band, self.edge, CONTRAST_REAL, rng) for t in order]
+        per_style, shares = [], []
+        for s in charged:
+            mine = band * (styles == s)
+            at = _pick(mine > 0, PATCHES_OUT, rng)
+            logits = nearest_style_logits(band_patches(output, at, self.edge), libraries)
+            target = torch.full((len(at),), order.index(s), dtype=torch.int64, device=output.device)
+            per_style.append(F.cross_entropy(logits, target))
+            shares.append(float(mine.sum()))
         total = sum(shares)
         return sum(d * (n / total) for d, n in zip(per_style, shares))  # type: ignore[return-value]

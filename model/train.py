@@ -103,7 +103,7 @@ from model.networks import Generator, build_discriminators
 from model.previews import preview_samples, write_preview
 from model.strict_json import to_plain
 from model.style_bank import StyleCropBank, crop_edge
-from model.texture_stats import TextureTerm
+from model.texture_stats import PatchContrast, TextureTerm
 from model.train_config import TrainConfig, TrainResult  # noqa: F401 - this module's API
 from model.views import SampleView, check_window, surface_window
 from model.windows import Window, halo_cells, window_forward, windows_forward  # noqa: F401 - this module's API
@@ -171,6 +171,7 @@ class Trainer:
         self.prefetch: ContentPrefetcher | None = None  # set by ``train`` when ``data_workers`` > 0
         self.bank = self._style_bank()  # the style classification terms' real crops, or None (off)
         self.texture = TextureTerm(cfg.losses).to(self.device) if cfg.losses.texture_weight > 0 else None
+        self.contrast = PatchContrast(cfg.losses).to(self.device) if cfg.losses.texture_contrast > 0 else None
 
     # ------------------------------------------------------------------ tensors
 
@@ -215,7 +216,7 @@ class Trainer:
         coarse cells at 2^(j+1) voxels each) where the level is windowed.
         """
         lc, t = self.cfg.losses, self.tcfg
-        if lc.style_classifier <= 0 and lc.style_classifier_g <= 0 and lc.texture_weight <= 0:
+        if max(lc.style_classifier, lc.style_classifier_g, lc.texture_weight, lc.texture_contrast) <= 0:
             return None
         levels = self.cfg.supervised_levels[lc.style_classifier_from:]
         cells = t.window_cells if self.whole_levels < self.cfg.n_levels else 0
@@ -390,6 +391,11 @@ class Trainer:
             g["tex"] = sum(self.texture(outs[k], v.output_styles(levels[k]), self.bank.targets[levels[k]], rng)
                            for k in classified)
             g["total"] = g["total"] + lc.texture_weight * g["tex"]
+        if self.contrast is not None:  # each style's surface patches nearer its window than any other's
+            rng = rng_for(self.tcfg.seed, it, 501)
+            g["texc"] = sum(self.contrast(outs[k], v.output_styles(levels[k]), self.bank.targets[levels[k]], rng)
+                            for k in classified)
+            g["total"] = g["total"] + lc.texture_contrast * g["texc"]
         self.opt_g.zero_grad(set_to_none=True)
         g["total"].backward()
         self.opt_g.step()
@@ -418,7 +424,7 @@ class Trainer:
             **({"fill": g["fill"].item()} if cfg.losses.gamma_fill > 0 else {}),
             "d_total": dl["total"].item(), "d_real": dl["real"].item(), "d_fake": dl["fake"].item(),
             **({"d_mismatch": dl["mismatch"].item()} if cfg.losses.style_mismatch > 0 else {}),
-            **({k: g[n].item() for k, n in (("g_cls", "cls"), ("g_tex", "tex")) if n in g}),
+            **({k: g[n].item() for k, n in (("g_cls", "cls"), ("g_tex", "tex"), ("g_texc", "texc")) if n in g}),
             **({"d_cls": dl["cls"].item(), "d_cls_acc": round(dl["cls_acc"], 4)} if "cls" in dl else {}),
         }
 

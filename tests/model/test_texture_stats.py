@@ -10,8 +10,8 @@ import torch
 
 from model.checkpoint import load_checkpoint, save_checkpoint
 from model.config import LossConfig, ModelConfig, TextureMode
-from model.texture_stats import (MIN_BAND_VOXELS, TextureFeatures, TextureTerm, band_patches,
-                                 bidirectional_patch_distance)
+from model.texture_stats import (MIN_BAND_VOXELS, PatchContrast, TextureFeatures, TextureTerm, band_patches,
+                                 bidirectional_patch_distance, nearest_style_logits)
 from model.train import TrainConfig, Trainer, train
 from core.errors import DetailizeError
 from tests.model.test_train import EXS, _cfg, _tcfg
@@ -19,6 +19,7 @@ from tests.model.test_train import EXS, _cfg, _tcfg
 BASE = "warmup_centred_long_r1_fill_mismatch_offsets"
 STATS = "warmup_centred_long_r1_fill_mismatch_offsets_tex"
 PATCHES = "warmup_centred_long_r1_fill_mismatch_offsets_texp"
+CONTRAST = "warmup_centred_long_r1_fill_mismatch_offsets_texpc"
 
 
 def _ridged_box(n: int = 40, shift: int = 0, ridges: bool = True) -> torch.Tensor:
@@ -118,15 +119,44 @@ def test_only_styles_with_a_window_and_enough_surface_are_charged():
     assert both > own_only
 
 
+def _contrast(out: torch.Tensor, style: int, real: dict) -> torch.Tensor:
+    return PatchContrast(LossConfig(texture_contrast=1.0))(out, torch.full((40, 40, 40), style, dtype=torch.int64),
+                                                           real, np.random.default_rng(0))
+
+
+def test_nearest_style_logits_rank_the_library_that_holds_the_patch_first():
+    rng = np.random.default_rng(1)
+    libs = [torch.as_tensor(rng.random((5, 8)), dtype=torch.float32) for _ in range(3)]
+    mine = libs[2][[0, 3]] + 0.01
+    logits = nearest_style_logits(mine, libs, tau=0.1)
+    assert logits.shape == (2, 3) and (logits.argmax(1) == 2).all()
+    assert torch.allclose(logits[:, 2], torch.full((2,), -(0.01 ** 2) * 8 / (8 * 0.1)), atol=1e-5)  # float32 p²+q²−2pq
+
+
+def test_the_contrast_charges_patches_nearer_another_styles_window_more():
+    ridged, flat = _ridged_box(), _ridged_box(ridges=False)
+    real = {0: ridged, 1: flat}
+    # the ridged output is the ridged style's, the flat one the flat style's (libraries of 256 sampled patches
+    # cover a window sparsely, so a patch's own kind is near, not at distance 0)
+    assert float(_contrast(ridged, 0, real)) < float(_contrast(ridged, 1, real))
+    assert float(_contrast(flat, 1, real)) < float(_contrast(flat, 0, real))
+    out = flat.clone().requires_grad_(True)
+    _contrast(out, 0, real).backward()
+    assert out.grad.abs().sum() > 0  # a flat output labelled ridged is pushed
+    assert float(_contrast(ridged, 0, {0: ridged})) == 0.0  # one style with a window: nothing to tell apart
+    assert float(_contrast(ridged, 2, real)) == 0.0  # its style has no window
+
+
 def test_config_refuses_bad_bands_and_patches_and_reads_old_files_as_off():
     cfg = _cfg()
     for field, value in (("texture_band", 0), ("texture_band", 1.5), ("texture_patch", 7), ("texture_patch", 32)):
         with pytest.raises(DetailizeError, match=field):
             dataclasses.replace(cfg, losses=dataclasses.replace(cfg.losses, **{field: value}))
-    with pytest.raises(DetailizeError, match="texture_weight"):
-        dataclasses.replace(cfg, losses=dataclasses.replace(cfg.losses, texture_weight=-1.0))
+    for field in ("texture_weight", "texture_contrast"):
+        with pytest.raises(DetailizeError, match=field):
+            dataclasses.replace(cfg, losses=dataclasses.replace(cfg.losses, **{field: -1.0}))
     old = cfg.to_dict()
-    for key in ("texture_weight", "texture_mode", "texture_band", "texture_patch"):
+    for key in ("texture_weight", "texture_mode", "texture_band", "texture_patch", "texture_contrast"):
         old["losses"].pop(key)
     assert ModelConfig.from_dict(old) == cfg and cfg.losses.texture_weight == 0
     on = dataclasses.replace(cfg, losses=dataclasses.replace(cfg.losses, texture_weight=2.0,
@@ -134,7 +164,7 @@ def test_config_refuses_bad_bands_and_patches_and_reads_old_files_as_off():
     assert ModelConfig.from_dict(on.to_dict()) == on
 
 
-@pytest.mark.parametrize("recipe", [STATS, PATCHES])
+@pytest.mark.parametrize("recipe", [STATS, PATCHES, CONTRAST])
 def test_an_offsets_state_branches_into_the_term_which_moves_g_deterministically(tmp_path, recipe):
     from model.recipe_move import move_state_recipe
     from model.recipes import recipe_configs
@@ -156,5 +186,8 @@ def test_an_offsets_state_branches_into_the_term_which_moves_g_deterministically
         losses = trainer.iteration()
         runs.append((losses, torch.cat([p.detach().flatten() for p in trainer.gen.parameters()])))
     assert runs[0][0]["g_tex"] > 0 and runs[0][0]["g_tex"] == runs[1][0]["g_tex"]
+    assert ("g_texc" in runs[0][0]) == (recipe == CONTRAST)
+    if recipe == CONTRAST:  # two styles: the classification's loss is near ln 2, and the same in both runs
+        assert 0 < runs[0][0]["g_texc"] == runs[1][0]["g_texc"]
     # the patch gather's backward adds overlapping patches in thread order: equal to float rounding, not bit for bit
     assert torch.allclose(runs[0][1], runs[1][1], rtol=0, atol=1e-6)
