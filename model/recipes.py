@@ -117,7 +117,9 @@ a resume must name the same one.
   ``texture_mode`` patches; ``model/texture_stats.py``) at the two finest levels: the adversarial output's surface
   patches in each style against that style's bank window, both ways. Every earlier style signal was tied to a
   place (reconstruction) or to a learnt head that could be eroded (the style heads); this one is neither. Only
-  the losses differ, so an offsets state branches into it.
+  the losses differ, so an offsets state branches into it. From 17,153 for 450 iterations: LP-detail +0.045 over
+  the 17,153 state (+0.075 over upsample) but specificity −0.070 (patches other categories have: studs and steps
+  in every style); the strong arm lost structure and the thin line: not kept (``model/weights/things_selfrec.md``).
 - ``warmup_centred_long_r1_fill_mismatch_offsets_texpc`` (``_strong``): ``…_texp`` and the nearest-patch style
   classification (``LossConfig.texture_contrast`` = ``TEXTURE_CONTRAST_WEIGHT``, or ``…_STRONG``;
   ``PatchContrast``): texp's patches were the exemplar's but of kinds every style has (LP-detail up, specificity
