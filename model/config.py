@@ -182,18 +182,15 @@ class LossConfig:
             the D step, the others are classification-only steps of D's optimizer on fresh crops.
             At one step of D's 1e-4 per iteration a warmed classifier's accuracy drifted down
             (0.33 → 0.25 over 450 iterations) while the generator moved.
-        texture_weight: G's weight (0 = off, as in the paper) of a placement-free style term
-            (``model/texture_stats.py``) at the style bank's levels (``style_classifier_from`` on): the
-            adversarial output's surface in each style's voxels against that style's latest real window,
-            asking for the exemplar's kind of surface, not its voxels at their places.
+        texture_weight: G's weight (0 = off, as in the paper) of a placement-free style term (``texture_stats.py``)
+            at the style bank's levels (``style_classifier_from`` on): the output's surface in each style's voxels
+            against that style's latest real window: the exemplar's kind of surface, not its voxels at their places.
         texture_mode: which term: ``STATS`` (random-feature mean and second moment) or ``PATCHES``
             (bidirectional nearest surface patch).
         texture_band: half-width (voxels of the level) of the surface band the statistics are taken over.
         texture_patch: edge (voxels of the level) of the ``PATCHES`` term's patches.
-        texture_contrast: G's weight (0 = off) of the nearest-patch style classification at the same
-            levels (``model/texture_stats.py``'s ``PatchContrast``; its patches are ``texture_patch``
-            voxels in the ``texture_band``): every output patch should be nearer its own style's window
-            than any other style's. Independent of ``texture_weight``.
+        texture_contrast: G's weight (0 = off) of ``PatchContrast`` at the same levels, apart from ``texture_weight``:
+            each output patch (``texture_patch``, in the band) nearer its own style's window than any other's.
     """
 
     beta_recon: float = 10.0
@@ -569,16 +566,14 @@ def _validate(cfg: ModelConfig) -> None:
     if not 0 < cfg.leaky_slope < 1 or not 0 < cfg.clamp_slope < 1:
         raise bad("slopes must lie in (0, 1)", "leaky_slope", "the paper uses 0.02 and 0.002")
     lc = cfg.losses
-    for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma",
-                 "gamma_fill", "style_mismatch", "style_classifier", "style_classifier_g", "texture_weight",
-                 "texture_contrast"):
+    for name in ("beta_recon", "gamma_down", "gamma_up", "alpha_joint", "alpha_other", "smoothing_sigma", "gamma_fill",
+                 "style_mismatch", "style_classifier", "style_classifier_g", "texture_weight", "texture_contrast"):
         if getattr(lc, name) < 0:
             raise bad(f"{name} must be ≥ 0", f"losses.{name}", "weights are non-negative")
     if lc.up_level_weights and (len(lc.up_level_weights) != len(supervised) or min(lc.up_level_weights) < 0):
         raise bad(f"up_level_weights needs {len(supervised)} non-negative factors, got {lc.up_level_weights}",
                    "losses.up_level_weights", "one factor per supervised level, or () for 1 everywhere")
-    classify = (lc.style_classifier > 0 or lc.style_classifier_g > 0 or lc.texture_weight > 0
-                or lc.texture_contrast > 0)
+    classify = max(lc.style_classifier, lc.style_classifier_g, lc.texture_weight, lc.texture_contrast) > 0
     if classify and (not 0 <= lc.style_classifier_from < len(supervised) or lc.style_classifier_crop < 8):
         raise bad(f"style_classifier_from must index one of the {len(supervised)} supervised levels and the crop "
                   f"be ≥ 8 voxels", "losses.style_classifier_from", "e.g. 2 (the two finest levels) and 40")

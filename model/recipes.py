@@ -126,7 +126,7 @@ a resume must name the same one.
   down); this asks each patch to be nearer its own style's window than any other's. An offsets state branches in.
   From 17,153 for 450 iterations: at weight 1 specificity +0.028 over texp, still below upsample's; at 4
   specificity +0.051 over upsample's (the first learned arm above it) and overlap 0.50, but by removing detail
-  (LP-detail 0.018) and breaking the thin line (0.27 of cells half full): not kept (``model/weights/things_selfrec.md``).
+  (LP-detail 0.018) and breaking the thin line (0.27 of cells half full): not kept (``weights/things_selfrec.md``).
 - ``warmup_centred_long_r1_fill_mismatch_offsets_tex`` (``_strong``): the same with the random-feature statistics
   term (``TEXTURE_WEIGHT`` / ``TEXTURE_WEIGHT_STRONG``). Kept as a recipe for the record; its statistics follow a
   shape's edges more than its detail (the module's docstring), so it was stopped after 40 iterations.
