@@ -163,7 +163,16 @@ def _pick(mask: Tensor, most: int, rng: np.random.Generator) -> Tensor:
     return where
 
 
-def _band_patches_of(real: Tensor, band: int, edge: int, most: int, rng: np.random.Generator) -> Tensor:
+def share_weighted(output: Tensor, per_style: list[Tensor], shares: list[float]) -> Tensor:
+    """Σ_s share_s · term_s with shares normalised to sum 1 (each style's band voxels); 0, still a tensor of
+    ``output``'s graph, when no style was charged."""
+    if not per_style:
+        return output.sum() * 0.0
+    total = sum(shares)
+    return sum(d * (n / total) for d, n in zip(per_style, shares))  # type: ignore[return-value]
+
+
+def window_band_patches(real: Tensor, band: int, edge: int, most: int, rng: np.random.Generator) -> Tensor:
     """Up to ``most`` ``edge``³ patches (P, edge³) centred in the surface band of a real window (1, 1, …)."""
     return band_patches(real, _pick(surface_band(real, band)[0, 0] > 0, most, rng), edge)
 
@@ -210,14 +219,11 @@ class TextureTerm(nn.Module):
                 per_style.append(stats_distance(weighted_stats(feats, weights), target))
             else:
                 with torch.no_grad():
-                    library = _band_patches_of(real[s], self.band, self.edge, PATCHES_REAL, rng)
+                    library = window_band_patches(real[s], self.band, self.edge, PATCHES_REAL, rng)
                 at = _pick((bands[0] * mine)[0, 0] > 0, PATCHES_OUT, rng)
                 per_style.append(bidirectional_patch_distance(band_patches(output, at, self.edge), library))
             shares.append(n)
-        if not per_style:
-            return output.sum() * 0.0
-        total = sum(shares)
-        return sum(d * (n / total) for d, n in zip(per_style, shares))  # type: ignore[return-value]
+        return share_weighted(output, per_style, shares)
 
 
 class PatchContrast(nn.Module):
@@ -238,19 +244,18 @@ class PatchContrast(nn.Module):
         """
         order = sorted(real)
         band = surface_band(output, self.band)[0, 0]
-        charged = [s for s in torch.unique(styles).tolist()
-                   if s in real and float((band * (styles == s)).sum()) >= MIN_BAND_VOXELS]
+        masks = {s: band * (styles == s) for s in torch.unique(styles).tolist() if s in real}
+        charged = {s: m for s, m in masks.items() if float(m.sum()) >= MIN_BAND_VOXELS}
         if len(order) < 2 or not charged:
             return output.sum() * 0.0
         with torch.no_grad():
-            libraries = [_band_patches_of(real[t], self.band, self.edge, CONTRAST_REAL, rng) for t in order]
+            libraries = [window_band_patches(real[t], self.band, self.edge, CONTRAST_REAL, rng) for t in order]
         per_style, shares = [], []
-        for s in charged:
-            mine = band * (styles == s)
+        for s, mine in charged.items():
+            n = float(mine.sum())
             at = _pick(mine > 0, PATCHES_OUT, rng)
             logits = nearest_style_logits(band_patches(output, at, self.edge), libraries)
             target = torch.full((len(at),), order.index(s), dtype=torch.int64, device=output.device)
             per_style.append(F.cross_entropy(logits, target))
-            shares.append(float(mine.sum()))
-        total = sum(shares)
-        return sum(d * (n / total) for d, n in zip(per_style, shares))  # type: ignore[return-value]
+            shares.append(n)
+        return share_weighted(output, per_style, shares)

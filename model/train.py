@@ -386,16 +386,15 @@ class Trainer:
             g["cls"] = sum(style_classification_loss(d_logits[k], *assigned_styles(fake_masks[k].style))
                            for k in classified)
             g["total"] = g["total"] + lc.style_classifier_g * g["cls"]
-        if self.texture is not None:  # each style's surface against its latest real window's (texture_mode)
-            rng = rng_for(self.tcfg.seed, it, 500)
-            g["tex"] = sum(self.texture(outs[k], v.output_styles(levels[k]), self.bank.targets[levels[k]], rng)
-                           for k in classified)
-            g["total"] = g["total"] + lc.texture_weight * g["tex"]
-        if self.contrast is not None:  # each style's surface patches nearer its window than any other's
-            rng = rng_for(self.tcfg.seed, it, 501)
-            g["texc"] = sum(self.contrast(outs[k], v.output_styles(levels[k]), self.bank.targets[levels[k]], rng)
-                            for k in classified)
-            g["total"] = g["total"] + lc.texture_contrast * g["texc"]
+        # each style's surface against its latest real window (texture_mode), and its patches nearer that window
+        # than any other style's (texture_contrast); each term draws its patches from its own stream
+        for key, term, weight, stream in (("tex", self.texture, lc.texture_weight, 500),
+                                          ("texc", self.contrast, lc.texture_contrast, 501)):
+            if term is not None:
+                rng = rng_for(self.tcfg.seed, it, stream)
+                g[key] = sum(term(outs[k], v.output_styles(levels[k]), self.bank.targets[levels[k]], rng)
+                             for k in classified)
+                g["total"] = g["total"] + weight * g[key]
         self.opt_g.zero_grad(set_to_none=True)
         g["total"].backward()
         self.opt_g.step()

@@ -21,7 +21,7 @@ from torch.nn import functional as F
 
 from model.checkpoint import load_checkpoint
 from model.data import AugmentConfig, exemplars_from_set, style_sample
-from model.texture_stats import (CONTRAST_REAL, PATCHES_OUT, _band_patches_of, nearest_style_logits)
+from model.texture_stats import (CONTRAST_REAL, PATCHES_OUT, window_band_patches, nearest_style_logits)
 from model.views import SampleView
 from stylesets.registry import resolve_style_set
 
@@ -44,11 +44,11 @@ def main() -> None:
                          cfg.n_levels, "cpu") for d in (0, 1)] for s in range(n)]
     with torch.no_grad():
         for j in levels:
-            libs = [_band_patches_of(views[s][0].target(j), lc.texture_band, lc.texture_patch, CONTRAST_REAL, rng)
+            libs = [window_band_patches(views[s][0].target(j), lc.texture_band, lc.texture_patch, CONTRAST_REAL, rng)
                     for s in range(n)]
             logits, labels = [], []
             for s in range(n):
-                q = _band_patches_of(views[s][1].target(j), lc.texture_band, lc.texture_patch, PATCHES_OUT, rng)
+                q = window_band_patches(views[s][1].target(j), lc.texture_band, lc.texture_patch, PATCHES_OUT, rng)
                 logits.append(nearest_style_logits(q, libs, 1.0))
                 labels.append(torch.full((len(q),), s, dtype=torch.int64))
             lg, lb = torch.cat(logits), torch.cat(labels)
