@@ -182,8 +182,13 @@ TEXTURE_PATCH_WEIGHT_STRONG = 60.0
 #: G's weight on the nearest-patch style classification in ``…_offsets_texpc``: ~2.7 a level on real shapes
 #: (``scripts/patch_contrast_tau.py``), ~5.5 over the two levels, level with the patch term's ~4.6 at 20.
 TEXTURE_CONTRAST_WEIGHT = 1.0
-#: …and in ``…_texpc_strong``.
+#: …and in ``…_texpc_strong``; ``_MID`` in ``…_texpc_coarse2``.
 TEXTURE_CONTRAST_WEIGHT_STRONG = 4.0
+TEXTURE_CONTRAST_WEIGHT_MID = 2.0
+#: ``…_texpc_coarse``: both terms from this supervised level on (1: 64³, 128³ and 256³) with patches of this edge
+#: (voxels of the level): at 64³ a 16³ patch spans 4 coarse cells, the scale of a window, a rosette or a facet.
+TEXTURE_COARSE_FROM = 1
+TEXTURE_COARSE_PATCH = 16
 #: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
 DISTILL_FRAC = 0.5
 
@@ -320,6 +325,14 @@ def _warmup_centred_long_r1_fill_mismatch_offsets_texpc(m: ModelConfig, t: Train
     return dataclasses.replace(m, losses=dataclasses.replace(m.losses, texture_contrast=weight)), t
 
 
+def _warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse(m: ModelConfig, t: TrainConfig,
+                                                                weight: float = TEXTURE_CONTRAST_WEIGHT,
+                                                                ) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill_mismatch_offsets_texpc(m, t, weight)
+    return dataclasses.replace(m, losses=dataclasses.replace(m.losses, style_classifier_from=TEXTURE_COARSE_FROM,
+                                                             texture_patch=TEXTURE_COARSE_PATCH)), t
+
+
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     m, t = _warmup(m, t)
     return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
@@ -393,6 +406,13 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
     "warmup_centred_long_r1_fill_mismatch_offsets_texpc_strong": (
         f"warmup_centred_long_r1_fill_mismatch_offsets_texpc at weight {TEXTURE_CONTRAST_WEIGHT_STRONG:g}",
         lambda m, t: _warmup_centred_long_r1_fill_mismatch_offsets_texpc(m, t, TEXTURE_CONTRAST_WEIGHT_STRONG)),
+    "warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse": (
+        "warmup_centred_long_r1_fill_mismatch_offsets_texpc with both terms from 64³ on and 16³ patches",
+        _warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse),
+    "warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse2": (
+        f"warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse with the classification at weight "
+        f"{TEXTURE_CONTRAST_WEIGHT_MID:g}",
+        lambda m, t: _warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse(m, t, TEXTURE_CONTRAST_WEIGHT_MID)),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

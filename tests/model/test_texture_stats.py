@@ -20,6 +20,7 @@ BASE = "warmup_centred_long_r1_fill_mismatch_offsets"
 STATS = "warmup_centred_long_r1_fill_mismatch_offsets_tex"
 PATCHES = "warmup_centred_long_r1_fill_mismatch_offsets_texp"
 CONTRAST = "warmup_centred_long_r1_fill_mismatch_offsets_texpc"
+COARSE = "warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse"
 
 
 def _ridged_box(n: int = 40, shift: int = 0, ridges: bool = True) -> torch.Tensor:
@@ -164,7 +165,7 @@ def test_config_refuses_bad_bands_and_patches_and_reads_old_files_as_off():
     assert ModelConfig.from_dict(on.to_dict()) == on
 
 
-@pytest.mark.parametrize("recipe", [STATS, PATCHES, CONTRAST])
+@pytest.mark.parametrize("recipe", [STATS, PATCHES, CONTRAST, COARSE])
 def test_an_offsets_state_branches_into_the_term_which_moves_g_deterministically(tmp_path, recipe):
     from model.recipe_move import move_state_recipe
     from model.recipes import recipe_configs
@@ -183,11 +184,12 @@ def test_an_offsets_state_branches_into_the_term_which_moves_g_deterministically
         trainer = Trainer(EXS, branched.config, tcfg)
         trainer.restore(state)
         assert trainer.bank is not None and trainer.bank.styles() == [0, 1]
+        assert trainer.bank.levels == branched.config.supervised_levels[branched.config.losses.style_classifier_from:]
         losses = trainer.iteration()
         runs.append((losses, torch.cat([p.detach().flatten() for p in trainer.gen.parameters()])))
     assert runs[0][0]["g_tex"] > 0 and runs[0][0]["g_tex"] == runs[1][0]["g_tex"]
-    assert ("g_texc" in runs[0][0]) == (recipe == CONTRAST)
-    if recipe == CONTRAST:  # two styles: the classification's loss is near ln 2, and the same in both runs
+    assert ("g_texc" in runs[0][0]) == (recipe in (CONTRAST, COARSE))
+    if recipe in (CONTRAST, COARSE):  # two styles: the classification's loss is near ln 2, and the same in both runs
         assert 0 < runs[0][0]["g_texc"] == runs[1][0]["g_texc"]
     # the patch gather's backward adds overlapping patches in thread order: equal to float rounding, not bit for bit
     assert torch.allclose(runs[0][1], runs[1][1], rtol=0, atol=1e-6)
