@@ -127,6 +127,11 @@ a resume must name the same one.
   From 17,153 for 450 iterations: at weight 1 specificity +0.028 over texp, still below upsample's; at 4
   specificity +0.051 over upsample's (the first learned arm above it) and overlap 0.50, but by removing detail
   (LP-detail 0.018) and breaking the thin line (0.27 of cells half full): not kept (``weights/things_selfrec.md``).
+- ``warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse`` (``2``): ``…_texpc`` (``2``: at weight
+  ``TEXTURE_CONTRAST_WEIGHT_MID``) with both terms from 64³ on and 16³ patches (``TEXTURE_COARSE_FROM``,
+  ``TEXTURE_COARSE_PATCH``). From 17,153 for 70 minutes (~365 iterations), against texpc at about equal CPU time:
+  more detail and self-reconstruction at weight 1, specificity +0.015 at 2, but still below upsample's. The
+  classification loss stayed at chance. Not kept (``weights/things_selfrec.md``).
 - ``warmup_centred_long_r1_fill_mismatch_offsets_tex`` (``_strong``): the same with the random-feature statistics
   term (``TEXTURE_WEIGHT`` / ``TEXTURE_WEIGHT_STRONG``). Kept as a recipe for the record; its statistics follow a
   shape's edges more than its detail (the module's docstring), so it was stopped after 40 iterations.
