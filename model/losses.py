@@ -257,7 +257,7 @@ def generator_adversarial_loss(
     cfg: ModelConfig,
     coarse: Sequence[Tensor] | None = None,
 ) -> dict[str, Tensor]:
-    """The adversarial G step's loss: Σ_levels GAN + γ_down·Σ L_down + Σ_levels γ_up·w_k·L_up [+ γ_fill·L_fill].
+    """The adversarial G step's loss: Σ_levels w_gan·GAN + γ_down·Σ L_down + Σ_levels γ_up·w_k·L_up [+ γ_fill·L_fill].
 
     Args:
         d_fake: per supervised level (``cfg.supervised_levels``), (B, N+1, *S_k) discriminator
@@ -270,7 +270,8 @@ def generator_adversarial_loss(
         coarse: per output, the binary coarse input cut to its cells (B, 1, X, Y, Z), for the
             cell-fill floor (``fill_floor_loss``); needed when ``cfg.losses.gamma_fill`` > 0.
     Returns:
-        ``total``, ``gan``, ``down``, ``up``, ``fill`` (0 when off), per-level ``gan{j}``
+        ``total``, ``gan`` (Σ_k ``lc.gan_weight(k)``·gan{j_k}), ``down``, ``up``, ``fill`` (0 when off),
+        per-level ``gan{j}`` (unweighted)
         (j = generator level) and per-output ``down{k}``/``up{k}``.
     """
     lc = cfg.losses
@@ -279,7 +280,8 @@ def generator_adversarial_loss(
     out: dict[str, Tensor] = {}
     for j, d, m, a in zip(levels, d_fake, masks, alphas):
         out[f"gan{j}"] = generator_gan_loss(d, m.style, m.global_, a)["total"]
-    out["gan"] = sum(out[f"gan{j}"] for j in levels[: len(d_fake)])  # type: ignore[assignment]
+    out["gan"] = sum(lc.gan_weight(k) * out[f"gan{j}"]  # type: ignore[assignment]
+                     for k, j in enumerate(levels[: len(d_fake)]))
     st = structure_losses(outputs, prevs, lc)
     out.update({k: v for k, v in st.items() if k != "total"})
     out["fill"] = outputs[0].new_zeros(())

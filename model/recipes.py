@@ -194,6 +194,10 @@ TEXTURE_CONTRAST_WEIGHT_MID = 2.0
 #: (voxels of the level): at 64³ a 16³ patch spans 4 coarse cells, the scale of a window, a rosette or a facet.
 TEXTURE_COARSE_FROM = 1
 TEXTURE_COARSE_PATCH = 16
+#: ``…_texpc_coarse_gan``: G's GAN factor per supervised level (32³, 64³, 128³, 256³): the adversary kept for the
+#: coarse structure, a quarter where the texture terms work; ``…_gan0`` (a probe): no GAN term above 32³.
+GAN_LEVELS_QUARTER = (1.0, 0.25, 0.25, 0.25)
+GAN_LEVELS_COARSE_ONLY = (1.0, 0.0, 0.0, 0.0)
 #: The ``distill`` recipe's fraction of reconstruction steps with quilt's output as target.
 DISTILL_FRAC = 0.5
 
@@ -338,6 +342,13 @@ def _warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse(m: ModelConfig, t
                                                              texture_patch=TEXTURE_COARSE_PATCH)), t
 
 
+def _warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse_gan(m: ModelConfig, t: TrainConfig,
+                                                                    factors: tuple[float, ...] = GAN_LEVELS_QUARTER,
+                                                                    ) -> tuple[ModelConfig, TrainConfig]:
+    m, t = _warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse(m, t)
+    return dataclasses.replace(m, losses=dataclasses.replace(m.losses, gan_level_weights=factors)), t
+
+
 def _distill(m: ModelConfig, t: TrainConfig) -> tuple[ModelConfig, TrainConfig]:
     m, t = _warmup(m, t)
     return m, dataclasses.replace(t, distill_frac=DISTILL_FRAC)
@@ -418,6 +429,12 @@ RECIPES: dict[str, tuple[str, Callable[[ModelConfig, TrainConfig], tuple[ModelCo
         f"warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse with the classification at weight "
         f"{TEXTURE_CONTRAST_WEIGHT_MID:g}",
         lambda m, t: _warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse(m, t, TEXTURE_CONTRAST_WEIGHT_MID)),
+    "warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse_gan": (
+        f"warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse with G's GAN term at {GAN_LEVELS_QUARTER} a level",
+        _warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse_gan),
+    "warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse_gan0": (
+        "warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse with G's GAN term at 32³ only (a probe)",
+        lambda m, t: _warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse_gan(m, t, GAN_LEVELS_COARSE_ONLY)),
     "distill": ("warmup, with half the reconstruction targets made by quilt on augmented contents", _distill),
 }
 

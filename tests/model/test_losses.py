@@ -280,3 +280,29 @@ def test_one_adversarial_step_end_to_end_on_a_tiny_lean_model():
                                        whole_shape_masks(d_fake_detached, fake, cfg), cfg)
     d_loss["total"].backward()
     assert all(p.grad is not None for p in discs.parameters())
+
+
+def test_gan_level_weights_scale_each_levels_gan_term_and_are_checked():
+    cfg = ModelConfig.paper(2, 3)
+    occ, labels = _two_part_content()
+    fake = StyledCoarse(occ, labels, (0, 1))
+    outputs = [torch.ones(1, 1, *(n * 2 ** (j + 1) for n in occ.shape)) for j in range(4)]
+    half = _d_outputs(cfg, occ.shape, [0.5, 0.5, 0.5, 0.5])
+    prevs = whole_shape_prevs(outputs, torch.ones(1, 1, 4, 4, 4))
+    args = (half, outputs, prevs, whole_shape_masks(half, fake, cfg), None)
+    plain = generator_adversarial_loss(*args, cfg)
+    factors = (1.0, 0.0, 0.25, 2.0)
+    weighted_cfg = dataclasses.replace(cfg, losses=dataclasses.replace(cfg.losses, gan_level_weights=factors))
+    weighted = generator_adversarial_loss(*args, weighted_cfg)
+    per_level = [plain[f"gan{j}"].item() for j in cfg.supervised_levels]
+    assert min(per_level) > 0  # every level charged, so a factor of 0 or 2 shows
+    assert weighted["gan"].item() == pytest.approx(sum(f * g for f, g in zip(factors, per_level)))
+    rest = plain["total"].item() - plain["gan"].item()  # the structure terms are not weighted
+    assert weighted["total"].item() - weighted["gan"].item() == pytest.approx(rest)
+    assert ModelConfig.from_dict(weighted_cfg.to_dict()) == weighted_cfg
+    old = cfg.to_dict()
+    old["losses"].pop("gan_level_weights")  # a file from before the factors reads as 1 at every level
+    assert ModelConfig.from_dict(old).losses.gan_level_weights == ()
+    for bad_factors in ((1.0, 1.0), (1.0, -0.5, 1.0, 1.0)):
+        with pytest.raises(DetailizeError, match="gan_level_weights"):
+            dataclasses.replace(cfg, losses=dataclasses.replace(cfg.losses, gan_level_weights=bad_factors))
