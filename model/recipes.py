@@ -132,6 +132,10 @@ a resume must name the same one.
   ``TEXTURE_COARSE_PATCH``). From 17,153 for 70 minutes (~365 iterations), against texpc at about equal CPU time:
   more detail and self-reconstruction at weight 1, specificity +0.015 at 2, but still below upsample's. The
   classification loss stayed at chance. Not kept (``weights/things_selfrec.md``).
+- ``warmup_centred_long_r1_fill_mismatch_offsets_texpc_coarse_gan`` (``_gan0``): ``…_texpc_coarse`` with G's GAN
+  term weighted per level (``LossConfig.gan_level_weights`` = ``GAN_LEVELS_QUARTER``, or ``GAN_LEVELS_COARSE_ONLY``:
+  a probe), because the texture terms' gradients oppose the GAN term's. Over 60 probe iterations from 17,153 the
+  classification loss followed the same course as with the full GAN term (``weights/things_selfrec.md``).
 - ``warmup_centred_long_r1_fill_mismatch_offsets_tex`` (``_strong``): the same with the random-feature statistics
   term (``TEXTURE_WEIGHT`` / ``TEXTURE_WEIGHT_STRONG``). Kept as a recipe for the record; its statistics follow a
   shape's edges more than its detail (the module's docstring), so it was stopped after 40 iterations.
