@@ -4,8 +4,9 @@
 
 Restores a training state whose recipe has ``texture_contrast`` > 0 and takes the adversarial content of its
 next iteration, one view of it. Then, on that fixed view, it runs ``--steps`` Adam steps of the generator on
-``PatchContrast`` alone (summed over the state's texture levels), with the same library and output patch draws
-at every step (a fresh generator seeded 0 each time), so only G changes. It prints the loss every 10 steps,
+``PatchContrast`` alone (summed over the state's texture levels). Every step uses a fresh random generator
+seeded 0, so the library draws are the same each time; the output patches are drawn from the output's own band
+with that stream, so they move only as the band moves with G. It prints the loss every 10 steps,
 with chance (levels × ln N) for reference. No discriminator, no structure terms: if the loss does not fall
 below chance here, the term cannot teach the style in training either. Nothing is saved.
 """
