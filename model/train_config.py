@@ -5,8 +5,11 @@
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from model.ablations import ABLATIONS
 from model.data import CENTRE, AugmentConfig, parse_style_offset
@@ -146,6 +149,13 @@ class TrainConfig:
         if self.ablation not in ABLATIONS:
             raise DetailizeError(f"unknown ablation {self.ablation!r}", field="ablation",
                                  hint="use one of: " + ", ".join(ABLATIONS))
+
+    @classmethod
+    def recorded(cls, settings: Mapping[str, Any], **changes: Any) -> TrainConfig:
+        """The settings a training state recorded (``Checkpoint.training["train_config"]``, JSON: ``betas`` a list),
+        then ``changes`` applied as ``dataclasses.replace`` would (each validated)."""
+        tcfg = cls(**dict(settings, betas=tuple(settings["betas"])))
+        return dataclasses.replace(tcfg, **changes) if changes else tcfg
 
     def reconstruction_steps(self, it: int) -> int:
         """Reconstruction steps of iteration ``it``: 1 in the warm-up, ``recon_steps_early`` until

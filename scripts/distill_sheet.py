@@ -41,8 +41,7 @@ def main() -> None:
     from PIL import Image, ImageDraw
 
     cks = [load_checkpoint(p, training_state=True) for p in a.checkpoints]
-    recorded = dict(cks[0].training["train_config"], betas=tuple(cks[0].training["train_config"]["betas"]))
-    tcfg = TrainConfig(**recorded)
+    tcfg = TrainConfig.recorded(cks[0].training["train_config"])
     sset = load_set(a.set)
     teacher = QuiltTeacher(exemplars_from_set(sset), sset)
     gens = []

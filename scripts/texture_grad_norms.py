@@ -13,7 +13,6 @@ gradient and the GAN term's. The run's state file is not written (the trainer is
 from __future__ import annotations
 
 import argparse
-import dataclasses
 
 import torch
 
@@ -32,9 +31,8 @@ def main() -> None:
     a = ap.parse_args()
     torch.set_num_threads(1)
     ck = load_checkpoint(a.state, training_state=True)
-    recorded = dict(ck.training["train_config"], betas=tuple(ck.training["train_config"]["betas"]))
-    tcfg = dataclasses.replace(TrainConfig(**recorded), out_dir="/tmp/texture_grad_norms", preview_every=0,
-                               monitor_every=0, data_workers=0, device="cpu")
+    tcfg = TrainConfig.recorded(ck.training["train_config"], out_dir="/tmp/texture_grad_norms", preview_every=0,
+                                monitor_every=0, data_workers=0, device="cpu")
     sset = resolve_style_set(a.set)
     trainer = Trainer(exemplars_from_set(sset), ck.config, tcfg, dict(ck.part_aliases), sset)
     trainer.restore(a.state)

@@ -47,9 +47,7 @@ def main() -> None:
                     help="keep a moving average of the generator's weights with this β (0: none; default: the state's)")
     a = ap.parse_args()
     ck = load_checkpoint(a.run / "last.pt", training_state=True)
-    recorded = dict(ck.training["train_config"])
-    recorded["betas"] = tuple(recorded["betas"])
-    tcfg = TrainConfig(**recorded)
+    tcfg = TrainConfig.recorded(ck.training["train_config"])
     tcfg = dataclasses.replace(tcfg, out_dir=str(a.run), steps=a.steps, device=a.device,
                                checkpoint_every=a.checkpoint_every or tcfg.checkpoint_every, preview_every=0,
                                data_workers=a.data_workers,

@@ -177,7 +177,7 @@ def test_an_offsets_state_branches_into_the_term_which_moves_g_deterministically
     res = train(EXS, cfg_o, t_o, resume=False)
     assert "g_tex" not in Trainer(EXS, cfg_o, t_o).iteration()  # off: nothing charged or logged
     branched = move_state_recipe(load_checkpoint(res.checkpoint, training_state=True), recipe, branch=True)
-    tcfg = TrainConfig(**dict(branched.training["train_config"], out_dir=str(tmp_path / "b"), betas=tuple(t_o.betas)))
+    tcfg = TrainConfig.recorded(branched.training["train_config"], out_dir=str(tmp_path / "b"))
     state = save_checkpoint(tmp_path / "branched.pt", branched)
     runs = []
     for _ in range(2):

@@ -186,3 +186,16 @@ def test_blockwise_skips_only_blocks_far_from_the_shape():
     # Blocks [0, 2) and [2, 4) have occupied cells within 1 cell: computed; from cell 4 on: skipped.
     torch.testing.assert_close(sparse[..., :64, :, :], dense[..., :64, :, :], atol=1e-5, rtol=0)
     assert torch.count_nonzero(sparse[..., 64:, :, :]) == 0 and torch.count_nonzero(dense[..., 64:, :, :]) > 0
+
+
+def test_train_config_recorded_reads_a_states_json_settings_and_applies_checked_changes(tmp_path):
+    from model.strict_json import to_plain
+
+    tcfg = _tcfg(tmp_path, 3)
+    settings = json.loads(json.dumps(to_plain(tcfg)))  # as a state file holds them: betas a list
+    assert isinstance(settings["betas"], list)
+    assert TrainConfig.recorded(settings) == tcfg
+    changed = TrainConfig.recorded(settings, steps=7, monitor_every=0)
+    assert changed == dataclasses.replace(tcfg, steps=7, monitor_every=0)
+    with pytest.raises(DetailizeError, match="steps"):
+        TrainConfig.recorded(settings, steps=-1)
